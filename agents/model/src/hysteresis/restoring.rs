@@ -1,0 +1,452 @@
+//! Paper B's restoring-torque model, driven by deflection alone (paper B eq. 7, MODEL.md §2).
+//!
+//! The loop is made of four segments:
+//!
+//! ```text
+//! loading line     (φ increasing, settled)    τ = k·φ + h
+//! unloading line   (φ decreasing, settled)    τ = k·φ − h
+//! transition ↑     (after a reversal to ↑)    τ = b + A_s·|φ − a|^n
+//! transition ↓     (after a reversal to ↓)    τ = b − A_s·|φ − a|^n
+//! ```
+//!
+//! (a, b) is the vertex of the current power curve: the point where the deflection last
+//! reversed. A transition is followed until it meets the envelope line of its direction,
+//! then that line is followed until the next reversal — so the loop is continuous.
+//! Direction comes from deflection increments with a dead band (at least one encoder count),
+//! never from a differentiated velocity. The four parameters (k, h, A_s, n) depend on the
+//! pivot position d through a [`RestoringCurve`].
+
+use crate::pchip::{InterpError, Pchip};
+
+/// AS5048A, 14 bit: one count is 2π/16384 rad.
+pub const AS5048A_COUNT_RAD: f64 = 2.0 * std::f64::consts::PI / 16384.0;
+
+/// The restoring-torque parameters at one pivot position.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct RestoringParams {
+    /// Slope of both envelope lines [N·m/rad].
+    pub k: f64,
+    /// Half the gap between the loading and unloading lines [N·m].
+    pub h: f64,
+    /// Scale of the transition power curves A_s [N·m/rad^n].
+    pub a_s: f64,
+    /// Exponent of the transition curves n [-].
+    pub n: f64,
+}
+
+impl RestoringParams {
+    /// Whether every value is finite, k, A_s, n positive and h non-negative.
+    pub fn is_valid(&self) -> bool {
+        [self.k, self.h, self.a_s, self.n]
+            .iter()
+            .all(|v| v.is_finite())
+            && self.k > 0.0
+            && self.h >= 0.0
+            && self.a_s > 0.0
+            && self.n > 0.0
+    }
+}
+
+/// Parameters as smooth (C¹, monotone-preserving) functions of the pivot position d [m].
+#[derive(Debug, Clone, PartialEq)]
+pub struct RestoringCurve {
+    k: Pchip,
+    h: Pchip,
+    a_s: Pchip,
+    n: Pchip,
+}
+
+impl RestoringCurve {
+    /// Builds the curve from a table of `(d [m], params)` with strictly increasing d.
+    pub fn new(table: &[(f64, RestoringParams)]) -> Result<Self, InterpError> {
+        let d: Vec<f64> = table.iter().map(|(d, _)| *d).collect();
+        let col = |f: fn(&RestoringParams) -> f64| table.iter().map(|(_, p)| f(p)).collect();
+        Ok(Self {
+            k: Pchip::new(d.clone(), col(|p| p.k))?,
+            h: Pchip::new(d.clone(), col(|p| p.h))?,
+            a_s: Pchip::new(d.clone(), col(|p| p.a_s))?,
+            n: Pchip::new(d, col(|p| p.n))?,
+        })
+    }
+
+    /// One set of parameters for every pivot position.
+    pub fn constant(params: RestoringParams) -> Self {
+        // A single node cannot fail to build.
+        Self::new(&[(0.0, params)]).unwrap_or_else(|_| unreachable!("one finite node"))
+    }
+
+    /// The parameters at pivot position `d` (end values held outside the table).
+    pub fn at(&self, d: f64) -> RestoringParams {
+        RestoringParams {
+            k: self.k.eval(d),
+            h: self.h.eval(d),
+            a_s: self.a_s.eval(d),
+            n: self.n.eval(d),
+        }
+    }
+
+    /// The table the curve was built from.
+    pub fn table(&self) -> Vec<(f64, RestoringParams)> {
+        self.k
+            .nodes()
+            .iter()
+            .enumerate()
+            .map(|(i, &d)| {
+                (
+                    d,
+                    RestoringParams {
+                        k: self.k.values()[i],
+                        h: self.h.values()[i],
+                        a_s: self.a_s.values()[i],
+                        n: self.n.values()[i],
+                    },
+                )
+            })
+            .collect()
+    }
+}
+
+/// A reversal of the deflection direction.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Reversal {
+    /// The deflection where the motion turned (the extreme reached) [rad].
+    pub phi: f64,
+    /// The new direction, +1 or −1.
+    pub direction: i8,
+}
+
+/// Finds reversals of the deflection direction from samples, with a dead band.
+///
+/// The motion must go back by more than the dead band from the extreme it reached before a
+/// reversal is declared; encoder jitter of one count never flips the direction.
+#[derive(Debug, Clone, PartialEq)]
+pub struct ReversalDetector {
+    dead_band: f64,
+    direction: i8,
+    extreme: f64,
+    origin: f64,
+}
+
+impl ReversalDetector {
+    /// A detector starting at `phi0` with unknown direction. `dead_band` [rad] is clamped to
+    /// at least one AS5048A count.
+    pub fn new(dead_band: f64, phi0: f64) -> Self {
+        let dead_band = if dead_band.is_finite() {
+            dead_band.max(AS5048A_COUNT_RAD)
+        } else {
+            AS5048A_COUNT_RAD
+        };
+        Self {
+            dead_band,
+            direction: 0,
+            extreme: phi0,
+            origin: phi0,
+        }
+    }
+
+    /// The current direction: +1, −1, or 0 before the first move beyond the dead band.
+    pub fn direction(&self) -> i8 {
+        self.direction
+    }
+
+    /// The extreme deflection reached in the current direction.
+    pub fn extreme(&self) -> f64 {
+        self.extreme
+    }
+
+    /// Feeds a sample. Returns `Some` when the direction reversed (not on the first move).
+    /// Also reports whether `phi` set a new extreme.
+    pub fn update(&mut self, phi: f64) -> (Option<Reversal>, bool) {
+        if self.direction == 0 {
+            if (phi - self.origin).abs() > self.dead_band {
+                self.direction = if phi > self.origin { 1 } else { -1 };
+                self.extreme = phi;
+                return (None, true);
+            }
+            return (None, false);
+        }
+        let s = f64::from(self.direction);
+        if s * (phi - self.extreme) > 0.0 {
+            self.extreme = phi;
+            (None, true)
+        } else if s * (self.extreme - phi) > self.dead_band {
+            let rev = Reversal {
+                phi: self.extreme,
+                direction: -self.direction,
+            };
+            self.direction = -self.direction;
+            self.extreme = phi;
+            (Some(rev), true)
+        } else {
+            (None, false)
+        }
+    }
+}
+
+/// Which of the four segments the model is on.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Segment {
+    /// A power-curve transition after a reversal (or the virgin curve).
+    Transition,
+    /// The envelope line of the current direction.
+    Line,
+}
+
+/// The restoring-torque estimator of one joint: feed (φ, d), get τ̂.
+#[derive(Debug, Clone)]
+pub struct RestoringTorqueModel {
+    curve: RestoringCurve,
+    detector: Option<ReversalDetector>,
+    dead_band: f64,
+    segment: Segment,
+    vertex: (f64, f64),
+    tau_at_extreme: f64,
+    tau: f64,
+}
+
+impl RestoringTorqueModel {
+    /// A model with the given parameter curve and direction dead band [rad].
+    pub fn new(curve: RestoringCurve, dead_band: f64) -> Self {
+        Self {
+            curve,
+            detector: None,
+            dead_band,
+            segment: Segment::Transition,
+            vertex: (0.0, 0.0),
+            tau_at_extreme: 0.0,
+            tau: 0.0,
+        }
+    }
+
+    /// The parameter curve.
+    pub fn curve(&self) -> &RestoringCurve {
+        &self.curve
+    }
+
+    /// Forgets the loop state (the next sample starts a virgin curve).
+    pub fn reset(&mut self) {
+        self.detector = None;
+        self.segment = Segment::Transition;
+    }
+
+    /// The segment the model is on.
+    pub fn segment(&self) -> Segment {
+        self.segment
+    }
+
+    /// The current direction (+1, −1, 0 before the first move).
+    pub fn direction(&self) -> i8 {
+        self.detector
+            .as_ref()
+            .map_or(0, ReversalDetector::direction)
+    }
+
+    /// The vertex (a, b) of the current power curve.
+    pub fn vertex(&self) -> (f64, f64) {
+        self.vertex
+    }
+
+    /// The last estimate [N·m].
+    pub fn torque(&self) -> f64 {
+        self.tau
+    }
+
+    /// Feeds a deflection `phi` [rad] at pivot position `d` [m]; returns the torque [N·m].
+    /// Non-finite input leaves the state as it was and returns the last estimate.
+    pub fn update(&mut self, phi: f64, d: f64) -> f64 {
+        if !phi.is_finite() || !d.is_finite() {
+            return self.tau;
+        }
+        let p = self.curve.at(d);
+        let Some(det) = self.detector.as_mut() else {
+            // Virgin state: start on the centre line between the envelopes.
+            self.detector = Some(ReversalDetector::new(self.dead_band, phi));
+            self.segment = Segment::Transition;
+            self.vertex = (phi, p.k * phi);
+            self.tau = self.vertex.1;
+            self.tau_at_extreme = self.tau;
+            return self.tau;
+        };
+        let (reversal, new_extreme) = det.update(phi);
+        if let Some(rev) = reversal {
+            self.vertex = (rev.phi, self.tau_at_extreme);
+            self.segment = Segment::Transition;
+        }
+        let direction = det.direction();
+        self.tau = self.evaluate(phi, direction, &p);
+        if new_extreme {
+            self.tau_at_extreme = self.tau;
+        }
+        self.tau
+    }
+
+    fn evaluate(&mut self, phi: f64, direction: i8, p: &RestoringParams) -> f64 {
+        let (a, b) = self.vertex;
+        if direction == 0 {
+            return b + p.k * (phi - a);
+        }
+        let s = f64::from(direction);
+        let line = p.k * phi + s * p.h;
+        match self.segment {
+            Segment::Line => line,
+            Segment::Transition => {
+                let u = (s * (phi - a)).max(0.0);
+                let curve = b + s * p.a_s * u.powf(p.n);
+                if s * (curve - line) >= 0.0 {
+                    self.segment = Segment::Line;
+                    line
+                } else {
+                    curve
+                }
+            }
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn params() -> RestoringParams {
+        RestoringParams {
+            k: 10.0,
+            h: 0.2,
+            a_s: 8.0,
+            n: 0.5,
+        }
+    }
+
+    fn model() -> RestoringTorqueModel {
+        RestoringTorqueModel::new(RestoringCurve::constant(params()), AS5048A_COUNT_RAD)
+    }
+
+    #[test]
+    fn detector_ignores_jitter_inside_the_dead_band() {
+        let mut det = ReversalDetector::new(0.0, 0.0);
+        let c = AS5048A_COUNT_RAD;
+        det.update(10.0 * c);
+        assert_eq!(det.direction(), 1);
+        // One count back and forth: no reversal.
+        for _ in 0..10 {
+            assert_eq!(det.update(9.0 * c).0, None);
+            assert_eq!(det.update(10.0 * c).0, None);
+        }
+        let (rev, _) = det.update(8.0 * c);
+        assert_eq!(
+            rev,
+            Some(Reversal {
+                phi: 10.0 * c,
+                direction: -1
+            })
+        );
+    }
+
+    #[test]
+    fn follows_the_closed_form_segments_of_a_loop() {
+        let p = params();
+        let mut m = model();
+        let step = 1e-4;
+        // Rise from 0 to 0.1: the virgin curve τ = A_s·φ^n meets the loading line kφ + h
+        // where 8√φ = 10φ + 0.2 (φ ≈ 6.4e-4); beyond it τ = kφ + h exactly.
+        let mut phi = 0.0;
+        m.update(phi, 0.0);
+        while phi < 0.1 - 1e-12 {
+            phi += step;
+            let tau = m.update(phi, 0.0);
+            if phi > 0.01 {
+                assert_eq!(m.segment(), Segment::Line);
+                assert!((tau - (p.k * phi + p.h)).abs() < 1e-12);
+            }
+        }
+        // Reverse: vertex (0.1, k·0.1 + h); transition τ = b − A_s·(0.1 − φ)^n until it meets
+        // the unloading line.
+        let b = p.k * 0.1 + p.h;
+        let u_meet = {
+            // Solve A_s·u^n = 2h + k·u... (curve meets kφ − h) by bisection on [0, 0.05].
+            let f = |u: f64| p.a_s * u.powf(p.n) - (2.0 * p.h + p.k * u);
+            let (mut lo, mut hi) = (1e-12, 0.05);
+            for _ in 0..100 {
+                let mid = 0.5 * (lo + hi);
+                if f(mid) < 0.0 { lo = mid } else { hi = mid }
+            }
+            hi
+        };
+        let mut saw_transition = false;
+        while phi > 0.0 + 1e-12 {
+            phi -= step;
+            let tau = m.update(phi, 0.0);
+            let u = 0.1 - phi;
+            if u > AS5048A_COUNT_RAD && u < u_meet - 2.0 * step {
+                saw_transition = true;
+                assert_eq!(m.segment(), Segment::Transition, "u={u}");
+                assert!((tau - (b - p.a_s * u.powf(p.n))).abs() < 1e-12);
+            }
+            if u > u_meet + 2.0 * step {
+                assert_eq!(m.segment(), Segment::Line);
+                assert!((tau - (p.k * phi - p.h)).abs() < 1e-12);
+            }
+        }
+        assert!(saw_transition);
+        assert!((m.vertex().0 - 0.1).abs() < 1e-9);
+    }
+
+    #[test]
+    fn loop_is_continuous_at_the_switch_and_the_gap_is_2h() {
+        let mut m = model();
+        let mut prev: Option<f64> = None;
+        let mut max_jump: f64 = 0.0;
+        for i in 0..4000 {
+            let phi = 0.1 * (i as f64 * 2.0 * std::f64::consts::PI / 1000.0).sin();
+            let tau = m.update(phi, 0.0);
+            if let Some(p) = prev {
+                max_jump = max_jump.max((tau - p).abs());
+            }
+            prev = Some(tau);
+        }
+        // The largest step per sample is bounded by the steepest part of a transition, with
+        // no jumps from re-anchoring: 8·√(6.3e-4 − 0) ≈ 0.2 N·m worst case.
+        assert!(max_jump < 0.25, "jump {max_jump}");
+        // At φ = 0 on the way up and down the torque differs by 2h.
+        let mut m = model();
+        for i in 0..=1000 {
+            m.update(
+                0.1 * (i as f64 * 2.0 * std::f64::consts::PI / 1000.0).sin(),
+                0.0,
+            );
+        }
+        let up = m.torque(); // at φ = 0 going up after a full cycle: on the loading line
+        assert!((up - params().h).abs() < 1e-9, "{up}");
+    }
+
+    #[test]
+    fn curve_interpolates_over_d_and_holds_ends() {
+        let p0 = RestoringParams {
+            k: 0.25,
+            h: 0.01,
+            a_s: 1.0,
+            n: 0.5,
+        };
+        let p1 = RestoringParams {
+            k: 65.0,
+            h: 0.3,
+            a_s: 30.0,
+            n: 0.7,
+        };
+        let c = RestoringCurve::new(&[(0.0, p0), (0.018, p1)]).unwrap();
+        assert_eq!(c.at(-1.0), p0);
+        assert_eq!(c.at(1.0), p1);
+        let mid = c.at(0.009);
+        assert!((mid.k - 32.625).abs() < 1e-9);
+        assert_eq!(c.table().len(), 2);
+        assert!(RestoringCurve::new(&[(0.01, p0), (0.0, p1)]).is_err());
+    }
+
+    #[test]
+    fn nan_input_keeps_state() {
+        let mut m = model();
+        m.update(0.0, 0.0);
+        let t = m.update(0.05, 0.0);
+        assert_eq!(m.update(f64::NAN, 0.0), t);
+        assert_eq!(m.update(0.05, f64::INFINITY), t);
+    }
+}

@@ -1,0 +1,23 @@
+//! # rig-model — the pure maths of the VSA rig
+//!
+//! No I/O, no async, no clocks: every part is a plain struct or function that any host,
+//! test or benchmark can drive sample by sample. SI units throughout (m, rad, N, N·m, s).
+//! The equations are those of `shared/MODEL.md`; each module names its section.
+//!
+//! | module | what | source |
+//! |---|---|---|
+//! | [`lever`] | lever VSA kinematics, torque, stiffness, pivot for a stiffness | paper B §2 |
+//! | [`hysteresis`] | Bouc-Wen, the restoring-torque model, its fit | paper B §3 |
+//! | [`awas`] | the AWAS joint of paper A | paper A eqs. 16–20 |
+//! | [`observer`] | EKF for inertia/damping and the stiffness observer | paper A §III |
+//! | [`planar`] | serial and five-bar kinematics, Jacobians, force, stiffness, S | paper B §4 |
+//! | [`allocation`] | bounded least squares for joint stiffnesses, tie-break, pivots | paper B §4.3 |
+//! | [`pchip`] | monotone C¹ interpolation (parameters smooth in d) | — |
+
+pub mod allocation;
+pub mod awas;
+pub mod hysteresis;
+pub mod lever;
+pub mod observer;
+pub mod pchip;
+pub mod planar;
