@@ -1,1 +1,244 @@
+//! # rig-config — one TOML file describes the rig
+//!
+//! Topology, geometry, every joint (servos, encoder, VSA parameters, restoring-torque model,
+//! limits), observer gains and Zenoh endpoints. The file uses lab units with the unit in the
+//! field name (`l1_mm`, `spring_limit_deg`); [`load`] validates it once and returns SI types.
+//!
+//! Unknown keys are rejected. Every error names the file, the line and the field, and says
+//! what is allowed; all problems of a file are reported together. See
+//! `rig-config/examples/*.toml` for commented examples.
 
+mod error;
+mod raw;
+mod validate;
+
+use std::path::{Path, PathBuf};
+
+pub use error::{ConfigError, ConfigErrors, FieldPath, Seg};
+use rig_model::awas::{Awas, AwasDynamics};
+use rig_model::hysteresis::RestoringCurve;
+use rig_model::lever::LeverVsa;
+use rig_model::observer::EkfConfig;
+use rig_model::planar::{Elbow, FiveBar, FiveBarGeometry, PlanarRobot, SerialArm};
+
+/// How the joints are arranged.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Topology {
+    /// One joint on a test bench (paper A's AWAS, or a lever VSA).
+    Single,
+    /// Serial 2-link arm (paper B chain 1).
+    Serial,
+    /// Five-bar with four VSAs and a passive fifth joint (paper B).
+    Parallel,
+}
+
+impl Topology {
+    /// Joints the topology needs.
+    pub fn joint_count(self) -> usize {
+        match self {
+            Topology::Single => 1,
+            Topology::Serial => 2,
+            Topology::Parallel => 4,
+        }
+    }
+
+    pub fn name(self) -> &'static str {
+        match self {
+            Topology::Single => "single",
+            Topology::Serial => "serial",
+            Topology::Parallel => "parallel",
+        }
+    }
+}
+
+/// Planar geometry [m] and inverse-kinematics branches.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Geometry {
+    pub l1: f64,
+    pub l2: f64,
+    /// Chain-2 lengths and base offset (parallel only; 0 otherwise).
+    pub l3: f64,
+    pub l4: f64,
+    pub l5: f64,
+    pub lb: f64,
+    pub elbow1: Elbow,
+    pub elbow2: Elbow,
+    /// Default end-effector position (x, y) [m].
+    pub home: (f64, f64),
+}
+
+/// Servo bus and IDs of one joint board.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct ServoConfig {
+    pub bus: String,
+    pub baud: u32,
+    pub main_id: u8,
+    pub main_model: String,
+    pub main_protocol: u8,
+    /// The pivot servo of a lever VSA, the stiffness motor of AWAS.
+    pub stiffness_id: u8,
+    pub stiffness_model: String,
+    pub stiffness_protocol: u8,
+}
+
+/// How the board reads the deflection encoder.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum EncoderInterface {
+    /// SPI through spidev on the joint board.
+    Spi,
+    /// A serial bridge (paper B's Arduino).
+    Serial,
+}
+
+/// The deflection encoder.
+#[derive(Debug, Clone, PartialEq)]
+pub struct EncoderConfig {
+    pub model: String,
+    pub bits: u8,
+    pub interface: EncoderInterface,
+    /// One count [rad].
+    pub resolution_rad: f64,
+}
+
+/// What kind of VSA a joint is, with its parameters.
+#[derive(Debug, Clone)]
+pub enum JointKind {
+    /// Paper B's lever VSA with its restoring-torque model.
+    Lever {
+        vsa: LeverVsa,
+        restoring: RestoringCurve,
+        dead_band_rad: f64,
+    },
+    /// Paper A's AWAS.
+    Awas { awas: Awas, dynamics: AwasDynamics },
+}
+
+/// Limits the joint agent enforces.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Limits {
+    pub motor_min_rad: f64,
+    pub motor_max_rad: f64,
+    /// Fastest pivot motion [m/s] (lever) or stiffness-motor motion [rad/s] (AWAS).
+    pub stiffness_rate: f64,
+    /// Joint stiffness bounds for allocation [N·m/rad] (default: the mechanism's range).
+    pub k_min: f64,
+    pub k_max: f64,
+    /// Hold the last safe position when no command came for this long [s].
+    pub watchdog_s: f64,
+}
+
+/// One joint.
+#[derive(Debug, Clone)]
+pub struct JointConfig {
+    pub name: String,
+    /// Position in the file, 0-based (θ1 is joint 0).
+    pub index: usize,
+    /// Dynamixel servos; `None` for a joint that only runs simulated.
+    pub servo: Option<ServoConfig>,
+    pub encoder: EncoderConfig,
+    pub kind: JointKind,
+    pub limits: Limits,
+}
+
+/// Gains of the impedance observer.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct ObserverConfig {
+    pub alpha: f64,
+    pub k0: f64,
+    pub q_diag: [f64; 4],
+    pub r_diag: [f64; 2],
+    pub p0_diag: [f64; 4],
+}
+
+impl ObserverConfig {
+    /// The EKF tuning at sample time `ts`.
+    pub fn ekf(&self, ts: f64) -> EkfConfig {
+        EkfConfig {
+            ts,
+            q_diag: self.q_diag,
+            r_diag: self.r_diag,
+            p0_diag: self.p0_diag,
+            x0: [0.0; 4],
+        }
+    }
+}
+
+/// Zenoh session mode.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum ZenohMode {
+    Peer,
+    Client,
+    Router,
+}
+
+/// Zenoh endpoints.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct ZenohConfig {
+    pub mode: ZenohMode,
+    pub listen: Vec<String>,
+    pub connect: Vec<String>,
+}
+
+/// The whole validated rig.
+#[derive(Debug, Clone)]
+pub struct RigConfig {
+    /// The file it came from.
+    pub source: PathBuf,
+    pub name: String,
+    pub topology: Topology,
+    /// Joint sample rate [Hz].
+    pub rate_hz: f64,
+    pub geometry: Option<Geometry>,
+    pub joints: Vec<JointConfig>,
+    pub observer: ObserverConfig,
+    pub zenoh: ZenohConfig,
+}
+
+impl RigConfig {
+    /// The planar robot, for serial and parallel rigs.
+    pub fn robot(&self) -> Option<PlanarRobot> {
+        let g = self.geometry?;
+        // Geometry was validated, so construction cannot fail; map errors to None anyway.
+        match self.topology {
+            Topology::Single => None,
+            Topology::Serial => SerialArm::new(g.l1, g.l2, g.elbow1)
+                .ok()
+                .map(PlanarRobot::Serial),
+            Topology::Parallel => FiveBar::new(
+                FiveBarGeometry {
+                    l1: g.l1,
+                    l2: g.l2,
+                    l3: g.l3,
+                    l4: g.l4,
+                    l5: g.l5,
+                    lb: g.lb,
+                },
+                g.elbow1,
+                g.elbow2,
+            )
+            .ok()
+            .map(PlanarRobot::FiveBar),
+        }
+    }
+}
+
+/// Reads and validates a config file.
+pub fn load(path: &Path) -> Result<RigConfig, ConfigErrors> {
+    let src = std::fs::read_to_string(path).map_err(|e| {
+        ConfigErrors(vec![ConfigError {
+            file: path.to_path_buf(),
+            line: None,
+            field: String::new(),
+            message: format!("cannot read the file: {e}"),
+        }])
+    })?;
+    parse(path, &src)
+}
+
+/// Validates config text; `path` is used in messages.
+pub fn parse(path: &Path, src: &str) -> Result<RigConfig, ConfigErrors> {
+    validate::parse(path, src)
+}
+
+#[cfg(test)]
+mod tests;

@@ -1,0 +1,150 @@
+//! The TOML file as written: field names carry their units (mm, deg), unknown keys are
+//! rejected. [`crate::validate`] turns this into SI types.
+
+use serde::Deserialize;
+
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct RawConfig {
+    pub rig: RawRig,
+    pub geometry: Option<RawGeometry>,
+    #[serde(default)]
+    pub joint: Vec<RawJoint>,
+    pub observer: Option<RawObserver>,
+    pub zenoh: Option<RawZenoh>,
+}
+
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct RawRig {
+    pub name: String,
+    pub topology: String,
+    pub rate_hz: Option<f64>,
+}
+
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct RawGeometry {
+    pub l1_mm: Option<f64>,
+    pub l2_mm: Option<f64>,
+    pub l3_mm: Option<f64>,
+    pub l4_mm: Option<f64>,
+    pub l5_mm: Option<f64>,
+    pub lb_mm: Option<f64>,
+    pub elbow1: Option<String>,
+    pub elbow2: Option<String>,
+    pub home_mm: Option<Vec<f64>>,
+}
+
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct RawJoint {
+    pub name: String,
+    pub kind: String,
+    /// Absent for a joint that only runs simulated (e.g. paper A's AWAS, which used custom boards).
+    pub servo: Option<RawServo>,
+    pub encoder: RawEncoder,
+    pub lever: Option<RawLever>,
+    pub restoring: Option<RawRestoring>,
+    pub awas: Option<RawAwas>,
+    pub limits: RawLimits,
+}
+
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct RawServo {
+    pub bus: String,
+    pub baud: u32,
+    pub main_id: u8,
+    pub main_model: String,
+    pub main_protocol: u8,
+    pub stiffness_id: u8,
+    pub stiffness_model: String,
+    pub stiffness_protocol: u8,
+}
+
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct RawEncoder {
+    pub kind: String,
+    pub bits: u8,
+    pub interface: String,
+}
+
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct RawLever {
+    pub d0_mm: f64,
+    pub d_min_mm: f64,
+    pub d_max_mm: f64,
+    pub p_mm: f64,
+    pub k_alpha_nm_per_rad: f64,
+    pub spring_limit_deg: f64,
+}
+
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct RawRestoring {
+    pub dead_band_counts: Option<f64>,
+    pub point: Vec<RawRestoringPoint>,
+}
+
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct RawRestoringPoint {
+    pub d_mm: f64,
+    pub k_nm_per_rad: f64,
+    pub h_nm: f64,
+    pub a_s: f64,
+    pub n: f64,
+}
+
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct RawAwas {
+    pub k_s_n_per_m: f64,
+    pub r0_mm: f64,
+    pub screw_lead_mm: f64,
+    pub r_min_mm: f64,
+    pub r_max_mm: f64,
+    pub link_inertia_kg_m2: f64,
+    pub link_damping_nms_per_rad: f64,
+    pub b1_kg_m2: f64,
+    pub d1_nms_per_rad: f64,
+    pub b2_kg_m2: f64,
+    pub d2_nms_per_rad: f64,
+}
+
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct RawLimits {
+    pub motor_min_deg: f64,
+    pub motor_max_deg: f64,
+    /// Lever VSA: fastest pivot motion.
+    pub pivot_rate_mm_per_s: Option<f64>,
+    /// AWAS: fastest stiffness-motor motion.
+    pub stiffness_motor_rate_deg_per_s: Option<f64>,
+    pub k_min_nm_per_rad: Option<f64>,
+    pub k_max_nm_per_rad: Option<f64>,
+    pub watchdog_ms: f64,
+}
+
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct RawObserver {
+    pub alpha: f64,
+    pub k0_nm_per_rad: Option<f64>,
+    pub q_diag: Vec<f64>,
+    pub r_diag: Vec<f64>,
+    pub p0_diag: Vec<f64>,
+}
+
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct RawZenoh {
+    pub mode: String,
+    #[serde(default)]
+    pub listen: Vec<String>,
+    #[serde(default)]
+    pub connect: Vec<String>,
+}

@@ -1,0 +1,209 @@
+use std::path::{Path, PathBuf};
+
+use super::*;
+
+fn example(name: &str) -> (PathBuf, String) {
+    let path = Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("examples")
+        .join(name);
+    let src = std::fs::read_to_string(&path).unwrap();
+    (path, src)
+}
+
+/// Parses `src` after replacing the first `from` with `to`; returns the errors.
+fn errors_after(name: &str, from: &str, to: &str) -> Vec<ConfigError> {
+    let (path, src) = example(name);
+    assert!(src.contains(from), "{from:?} not in {name}");
+    let bad = src.replacen(from, to, 1);
+    parse(&path, &bad).expect_err("should be refused").0
+}
+
+fn line_containing(name: &str, needle: &str, nth: usize) -> usize {
+    let (_, src) = example(name);
+    src.lines()
+        .enumerate()
+        .filter(|(_, l)| l.contains(needle))
+        .nth(nth)
+        .map(|(i, _)| i + 1)
+        .unwrap()
+}
+
+#[test]
+fn examples_validate_into_si() {
+    let (p, src) = example("parallel.toml");
+    let cfg = parse(&p, &src).unwrap();
+    assert_eq!(cfg.topology, Topology::Parallel);
+    assert_eq!(cfg.joints.len(), 4);
+    let g = cfg.geometry.unwrap();
+    assert!((g.l5 - 0.05).abs() < 1e-15 && (g.home.1 - 0.2).abs() < 1e-15);
+    let JointKind::Lever {
+        vsa,
+        restoring,
+        dead_band_rad,
+    } = &cfg.joints[0].kind
+    else {
+        panic!()
+    };
+    assert!((vsa.p - 0.0315).abs() < 1e-15);
+    assert!((vsa.alpha_max - 43f64.to_radians()).abs() < 1e-15);
+    assert!((restoring.at(0.018).k - 65.3186).abs() < 1e-9);
+    assert!((dead_band_rad - 2.0 * std::f64::consts::PI / 16384.0).abs() < 1e-15);
+    assert_eq!(cfg.joints[2].limits.k_max, 60.0);
+    assert!(cfg.robot().is_some());
+
+    let (p, src) = example("serial.toml");
+    let cfg = parse(&p, &src).unwrap();
+    assert_eq!(cfg.joints.len(), 2);
+    assert!(matches!(
+        cfg.robot(),
+        Some(rig_model::planar::PlanarRobot::Serial(_))
+    ));
+
+    let (p, src) = example("awas.toml");
+    let cfg = parse(&p, &src).unwrap();
+    let JointKind::Awas { awas, dynamics } = &cfg.joints[0].kind else {
+        panic!()
+    };
+    let (lo, hi) = awas.stiffness_range();
+    assert!(
+        (lo - 30.0).abs() < 0.01 && (hi - 1500.0).abs() < 0.01,
+        "{lo} {hi}"
+    );
+    assert_eq!(dynamics.link_inertia, 0.05);
+    assert!(cfg.joints[0].servo.is_none());
+    assert!((cfg.joints[0].limits.k_min - lo).abs() < 1e-12);
+    assert!(cfg.robot().is_none());
+}
+
+#[test]
+fn nan_is_refused_with_line_and_field() {
+    let e = errors_after("parallel.toml", "l2_mm = 150.0", "l2_mm = nan");
+    assert_eq!(e.len(), 1, "{e:?}");
+    assert_eq!(e[0].field, "geometry.l2_mm");
+    assert_eq!(
+        e[0].line,
+        Some(line_containing("parallel.toml", "l2_mm", 0))
+    );
+    assert!(e[0].message.contains("finite"));
+    assert!(
+        e[0].to_string()
+            .starts_with(&format!("{}:", example("parallel.toml").0.display()))
+    );
+}
+
+#[test]
+fn negative_length_is_refused() {
+    let e = errors_after("serial.toml", "l1_mm = 150.0", "l1_mm = -150.0");
+    assert_eq!(e[0].field, "geometry.l1_mm");
+    assert!(e[0].message.contains("> 0"), "{}", e[0].message);
+}
+
+#[test]
+fn d_range_outside_the_mechanism_is_refused() {
+    let e = errors_after("parallel.toml", "d_max_mm = 18.0", "d_max_mm = 25.0");
+    assert_eq!(e[0].field, "joint[0].lever.d_max_mm");
+    assert!(
+        e[0].message.contains("outside the mechanism"),
+        "{}",
+        e[0].message
+    );
+    assert_eq!(
+        e[0].line,
+        Some(line_containing("parallel.toml", "d_max_mm", 0))
+    );
+}
+
+#[test]
+fn duplicate_servo_id_is_refused_naming_both() {
+    let e = errors_after("parallel.toml", "main_id = 2 ", "main_id = 1 ");
+    let dup = e
+        .iter()
+        .find(|e| e.message.contains("used twice"))
+        .expect("a duplicate error");
+    assert_eq!(dup.field, "joint[1].servo.main_id");
+    assert!(dup.message.contains("joint[0].servo.main_id"));
+    assert_eq!(
+        dup.line,
+        Some(line_containing("parallel.toml", "main_id", 1))
+    );
+}
+
+#[test]
+fn unknown_key_is_refused_with_its_line() {
+    let e = errors_after("parallel.toml", "p_mm = 31.5", "p_mm = 31.5\nstiffnes = 3");
+    assert_eq!(e[0].field, "stiffnes");
+    assert!(e[0].message.contains("unknown field"), "{}", e[0].message);
+    assert_eq!(
+        e[0].line,
+        Some(line_containing("parallel.toml", "p_mm", 0) + 1)
+    );
+}
+
+#[test]
+fn wrong_type_and_bad_enum_name_the_field() {
+    let e = errors_after(
+        "parallel.toml",
+        "topology = \"parallel\"",
+        "topology = \"delta\"",
+    );
+    assert_eq!(e[0].field, "rig.topology");
+    assert!(e[0].message.contains("\"parallel\""));
+    let e = errors_after("parallel.toml", "baud = 1000000", "baud = \"fast\"");
+    assert!(e[0].line.is_some());
+}
+
+#[test]
+fn several_problems_are_reported_together() {
+    let (p, src) = example("parallel.toml");
+    let bad = src.replacen("l1_mm = 150.0", "l1_mm = -1.0", 1).replacen(
+        "spring_limit_deg = 43.0",
+        "spring_limit_deg = 120.0",
+        1,
+    );
+    let e = parse(&p, &bad).unwrap_err();
+    assert!(e.0.len() >= 2, "{e}");
+    assert!(e.to_string().lines().count() >= 2);
+}
+
+#[test]
+fn topology_joint_count_and_bounds_are_checked() {
+    let e = errors_after(
+        "serial.toml",
+        "topology = \"serial\"",
+        "topology = \"parallel\"",
+    );
+    assert!(
+        e.iter()
+            .any(|e| e.field == "joint" && e.message.contains("4 [[joint]]")),
+        "{e:?}"
+    );
+    let e = errors_after(
+        "parallel.toml",
+        "k_max_nm_per_rad = 50.0",
+        "k_max_nm_per_rad = 80.0",
+    );
+    assert_eq!(e[0].field, "joint[0].limits.k_max_nm_per_rad");
+    let e = errors_after(
+        "parallel.toml",
+        "home_mm = [75.0, 200.0]",
+        "home_mm = [75.0, 900.0]",
+    );
+    assert_eq!(e[0].field, "geometry.home_mm");
+    assert!(e[0].message.contains("out of reach"), "{}", e[0].message);
+}
+
+#[test]
+fn zenoh_endpoints_are_checked() {
+    let e = errors_after(
+        "parallel.toml",
+        "listen = []",
+        "listen = [\"127.0.0.1:7447\"]",
+    );
+    assert_eq!(e[0].field, "zenoh.listen[0]");
+}
+
+#[test]
+fn missing_file_is_a_clear_error() {
+    let e = load(Path::new("/nonexistent/rig.toml")).unwrap_err();
+    assert!(e.to_string().contains("cannot read the file"));
+}

@@ -1,0 +1,900 @@
+//! Raw TOML → validated SI config. Every check records an error at a field path; all
+//! problems are returned together.
+
+use std::collections::HashMap;
+use std::path::Path;
+
+use rig_model::awas::{Awas, AwasDynamics};
+use rig_model::hysteresis::{RestoringCurve, RestoringParams};
+use rig_model::lever::LeverVsa;
+use rig_model::planar::Elbow;
+
+use crate::error::{Collector, ConfigError, ConfigErrors, FieldPath, line_of};
+use crate::raw::*;
+use crate::*;
+
+const MM: f64 = 1e-3;
+
+pub fn parse(path: &Path, src: &str) -> Result<RigConfig, ConfigErrors> {
+    let raw: RawConfig =
+        toml::from_str(src).map_err(|e| ConfigErrors(vec![deser_error(path, src, &e)]))?;
+    let mut c = Collector::new(path, src);
+    let cfg = build(&mut c, &raw);
+    match cfg {
+        Some(cfg) if c.errors.is_empty() => Ok(RigConfig {
+            source: path.to_path_buf(),
+            ..cfg
+        }),
+        _ => Err(ConfigErrors(c.errors)),
+    }
+}
+
+fn deser_error(path: &Path, src: &str, e: &toml::de::Error) -> ConfigError {
+    let span = e.span();
+    let line = span.as_ref().map(|s| line_of(src, s.start));
+    // For a key error the span covers the key: name it as the field.
+    let field = span
+        .and_then(|s| src.get(s))
+        .filter(|t| !t.is_empty() && t.len() < 64 && !t.contains('\n'))
+        .map(str::to_string)
+        .unwrap_or_default();
+    let mut message = e.message().trim().to_string();
+    if message.starts_with("unknown field") {
+        message.push_str(" (check the spelling and the unit suffix; see rig-config/examples/)");
+    }
+    ConfigError {
+        file: path.to_path_buf(),
+        line,
+        field,
+        message,
+    }
+}
+
+/// Checks on numbers, recording errors.
+trait Checks {
+    fn finite(&mut self, p: &FieldPath, v: f64) -> bool;
+    fn positive(&mut self, p: &FieldPath, v: f64) -> bool;
+    fn non_negative(&mut self, p: &FieldPath, v: f64) -> bool;
+    fn one_of<T: Copy>(&mut self, p: &FieldPath, v: &str, allowed: &[(&str, T)]) -> Option<T>;
+}
+
+impl Checks for Collector<'_> {
+    fn finite(&mut self, p: &FieldPath, v: f64) -> bool {
+        if v.is_finite() {
+            return true;
+        }
+        self.push(p, format!("must be a finite number, got {v}"));
+        false
+    }
+
+    fn positive(&mut self, p: &FieldPath, v: f64) -> bool {
+        if !self.finite(p, v) {
+            return false;
+        }
+        if v <= 0.0 {
+            self.push(p, format!("must be > 0, got {v}"));
+            return false;
+        }
+        true
+    }
+
+    fn non_negative(&mut self, p: &FieldPath, v: f64) -> bool {
+        if !self.finite(p, v) {
+            return false;
+        }
+        if v < 0.0 {
+            self.push(p, format!("must be >= 0, got {v}"));
+            return false;
+        }
+        true
+    }
+
+    fn one_of<T: Copy>(&mut self, p: &FieldPath, v: &str, allowed: &[(&str, T)]) -> Option<T> {
+        if let Some((_, t)) = allowed.iter().find(|(name, _)| *name == v) {
+            return Some(*t);
+        }
+        let names: Vec<String> = allowed.iter().map(|(n, _)| format!("\"{n}\"")).collect();
+        self.push(
+            p,
+            format!("\"{v}\" is not allowed; use one of {}", names.join(", ")),
+        );
+        None
+    }
+}
+
+fn build(c: &mut Collector<'_>, raw: &RawConfig) -> Option<RigConfig> {
+    let root = FieldPath::default();
+    let rig = root.key("rig");
+    if let Err(e) = rig_protocol_name(&raw.rig.name) {
+        c.push(&rig.key("name"), e);
+    }
+    let topology = c.one_of(
+        &rig.key("topology"),
+        &raw.rig.topology,
+        &[
+            ("single", Topology::Single),
+            ("serial", Topology::Serial),
+            ("parallel", Topology::Parallel),
+        ],
+    );
+    let rate_hz = raw.rig.rate_hz.unwrap_or(1000.0);
+    if c.positive(&rig.key("rate_hz"), rate_hz) && !(1.0..=20_000.0).contains(&rate_hz) {
+        c.push(
+            &rig.key("rate_hz"),
+            format!("{rate_hz} Hz is outside [1, 20000] Hz"),
+        );
+    }
+
+    let geometry = topology.and_then(|t| geometry(c, t, raw.geometry.as_ref()));
+
+    // Joints.
+    let jp = root.key("joint");
+    if let Some(t) = topology
+        && raw.joint.len() != t.joint_count()
+    {
+        c.push(
+            &jp,
+            format!(
+                "a {} rig has {} [[joint]] tables, found {}",
+                t.name(),
+                t.joint_count(),
+                raw.joint.len()
+            ),
+        );
+    }
+    let mut joints = Vec::new();
+    let mut names: HashMap<&str, usize> = HashMap::new();
+    let mut ids: HashMap<(&str, u8), (usize, &'static str)> = HashMap::new();
+    for (i, j) in raw.joint.iter().enumerate() {
+        let p = jp.index(i);
+        if let Err(e) = rig_protocol_name(&j.name) {
+            c.push(&p.key("name"), e);
+        }
+        if let Some(first) = names.insert(&j.name, i) {
+            c.push(
+                &p.key("name"),
+                format!(
+                    "joint name \"{}\" is used twice (also joint[{first}])",
+                    j.name
+                ),
+            );
+        }
+        let servo_ids = j.servo.as_ref().map(|s| {
+            [
+                (s.bus.as_str(), s.main_id, "main_id"),
+                (s.bus.as_str(), s.stiffness_id, "stiffness_id"),
+            ]
+        });
+        for (bus, id, field) in servo_ids.into_iter().flatten() {
+            if let Some((other, other_field)) = ids.insert((bus, id), (i, field)) {
+                c.push(
+                    &p.key("servo").key(field),
+                    format!(
+                        "servo ID {id} on bus \"{}\" is used twice (also joint[{other}].servo.{other_field}); IDs must be unique per bus",
+                        bus
+                    ),
+                );
+            }
+        }
+        if let Some(jc) = joint(c, &p, i, j, topology) {
+            joints.push(jc);
+        }
+    }
+
+    let observer = observer(c, raw.observer.as_ref());
+    let zenoh = zenoh(c, raw.zenoh.as_ref());
+    Some(RigConfig {
+        source: Default::default(),
+        name: raw.rig.name.clone(),
+        topology: topology?,
+        rate_hz,
+        geometry,
+        joints,
+        observer: observer?,
+        zenoh: zenoh?,
+    })
+}
+
+/// Names used in key expressions: 1–64 of `[A-Za-z0-9_-]`.
+fn rig_protocol_name(name: &str) -> Result<(), String> {
+    let ok = !name.is_empty()
+        && name.len() <= 64
+        && name
+            .bytes()
+            .all(|b| b.is_ascii_alphanumeric() || b == b'_' || b == b'-');
+    if ok {
+        Ok(())
+    } else {
+        Err(format!(
+            "\"{name}\" is not a valid name: use 1 to 64 characters from A-Z a-z 0-9 _ -"
+        ))
+    }
+}
+
+fn geometry(c: &mut Collector<'_>, t: Topology, raw: Option<&RawGeometry>) -> Option<Geometry> {
+    let p = FieldPath::default().key("geometry");
+    let Some(g) = raw else {
+        if t != Topology::Single {
+            c.push(
+                &p,
+                format!(
+                    "a {} rig needs a [geometry] table with its link lengths",
+                    t.name()
+                ),
+            );
+        }
+        return None;
+    };
+    if t == Topology::Single {
+        c.push(&p, "a single-joint rig has no [geometry]; remove the table");
+        return None;
+    }
+    let mut ok = true;
+    let mut need =
+        |c: &mut Collector<'_>, field: &'static str, v: Option<f64>, allow_zero: bool| -> f64 {
+            match v {
+                None => {
+                    c.push(&p.key(field), format!("is required for a {} rig", t.name()));
+                    ok = false;
+                    0.0
+                }
+                Some(v) => {
+                    let good = if allow_zero {
+                        c.non_negative(&p.key(field), v)
+                    } else {
+                        c.positive(&p.key(field), v)
+                    };
+                    ok &= good;
+                    v * MM
+                }
+            }
+        };
+    let l1 = need(c, "l1_mm", g.l1_mm, false);
+    let l2 = need(c, "l2_mm", g.l2_mm, false);
+    let (l3, l4, l5, lb) = if t == Topology::Parallel {
+        (
+            need(c, "l3_mm", g.l3_mm, false),
+            need(c, "l4_mm", g.l4_mm, false),
+            need(c, "l5_mm", g.l5_mm, true),
+            need(c, "lb_mm", g.lb_mm, true),
+        )
+    } else {
+        for (field, v) in [
+            ("l3_mm", g.l3_mm),
+            ("l4_mm", g.l4_mm),
+            ("l5_mm", g.l5_mm),
+            ("lb_mm", g.lb_mm),
+            ("elbow2", g.elbow2.as_ref().map(|_| 0.0)),
+        ] {
+            if v.is_some() {
+                c.push(
+                    &p.key(field),
+                    "belongs to the parallel robot only; remove it for a serial rig",
+                );
+                ok = false;
+            }
+        }
+        (0.0, 0.0, 0.0, 0.0)
+    };
+    let elbows = [("positive", Elbow::Positive), ("negative", Elbow::Negative)];
+    let elbow1 = c.one_of(
+        &p.key("elbow1"),
+        g.elbow1.as_deref().unwrap_or("negative"),
+        &elbows,
+    );
+    let elbow2 = c.one_of(
+        &p.key("elbow2"),
+        g.elbow2.as_deref().unwrap_or("positive"),
+        &elbows,
+    );
+    let home = match g.home_mm.as_deref() {
+        Some([x, y]) if c.finite(&p.key("home_mm"), *x) && c.finite(&p.key("home_mm"), *y) => {
+            (*x * MM, *y * MM)
+        }
+        Some([_, _]) => return None,
+        Some(_) => {
+            c.push(&p.key("home_mm"), "must be [x, y] in mm");
+            return None;
+        }
+        None => {
+            c.push(
+                &p.key("home_mm"),
+                "is required: the default end-effector position [x, y] in mm",
+            );
+            return None;
+        }
+    };
+    if !ok {
+        return None;
+    }
+    let geo = Geometry {
+        l1,
+        l2,
+        l3,
+        l4,
+        l5,
+        lb,
+        elbow1: elbow1?,
+        elbow2: elbow2?,
+        home,
+    };
+    // The home position must be a usable pose of the robot.
+    let cfg = RigConfig {
+        source: Default::default(),
+        name: String::new(),
+        topology: t,
+        rate_hz: 1.0,
+        geometry: Some(geo),
+        joints: vec![],
+        observer: ObserverConfig {
+            alpha: 1.0,
+            k0: 0.0,
+            q_diag: [0.0; 4],
+            r_diag: [1.0; 2],
+            p0_diag: [0.0; 4],
+        },
+        zenoh: ZenohConfig {
+            mode: ZenohMode::Peer,
+            listen: vec![],
+            connect: vec![],
+        },
+    };
+    match cfg.robot().map(|r| r.at_position(home.0, home.1)) {
+        Some(Ok(_)) => Some(geo),
+        Some(Err(e)) => {
+            c.push(&p.key("home_mm"), format!("is not a usable pose: {e}"));
+            None
+        }
+        None => {
+            c.push(&p, "link lengths do not form a robot");
+            None
+        }
+    }
+}
+
+fn joint(
+    c: &mut Collector<'_>,
+    p: &FieldPath,
+    index: usize,
+    j: &RawJoint,
+    topology: Option<Topology>,
+) -> Option<JointConfig> {
+    let servo = match &j.servo {
+        Some(s) => servo(c, &p.key("servo"), s).map(Some),
+        None => Some(None),
+    };
+    let encoder = encoder(c, &p.key("encoder"), &j.encoder);
+    let kind_p = p.key("kind");
+    let kind = c.one_of(&kind_p, &j.kind, &[("lever", "lever"), ("awas", "awas")])?;
+    if kind == "awas" && matches!(topology, Some(Topology::Serial | Topology::Parallel)) {
+        c.push(&kind_p, "the serial and parallel robots are built from lever VSAs (paper B); use kind = \"lever\"");
+    }
+    let resolution = encoder
+        .as_ref()
+        .map_or(rig_model::hysteresis::AS5048A_COUNT_RAD, |e| {
+            e.resolution_rad
+        });
+    let (kind, range) = match kind {
+        "lever" => {
+            for (field, present) in [("awas", j.awas.is_some())] {
+                if present {
+                    c.push(
+                        &p.key(field),
+                        "a lever joint has no [joint.awas] table; remove it",
+                    );
+                }
+            }
+            lever(c, p, j, resolution)?
+        }
+        _ => {
+            for (field, present) in [
+                ("lever", j.lever.is_some()),
+                ("restoring", j.restoring.is_some()),
+            ] {
+                if present {
+                    c.push(&p.key(field), "an AWAS joint has no such table; remove it");
+                }
+            }
+            awas(c, p, j)?
+        }
+    };
+    let limits = limits(c, &p.key("limits"), &j.limits, &kind, range)?;
+    Some(JointConfig {
+        name: j.name.clone(),
+        index,
+        servo: servo?,
+        encoder: encoder?,
+        kind,
+        limits,
+    })
+}
+
+fn servo(c: &mut Collector<'_>, p: &FieldPath, s: &RawServo) -> Option<ServoConfig> {
+    let mut ok = true;
+    if s.bus.trim().is_empty() {
+        c.push(
+            &p.key("bus"),
+            "must name the serial port, e.g. \"/dev/ttyUSB0\"",
+        );
+        ok = false;
+    }
+    const BAUDS: [u32; 9] = [
+        9600, 57_600, 115_200, 1_000_000, 2_000_000, 3_000_000, 4_000_000, 4_500_000, 10_500_000,
+    ];
+    if !BAUDS.contains(&s.baud) {
+        c.push(
+            &p.key("baud"),
+            format!(
+                "{} is not a Dynamixel baud rate; use one of {BAUDS:?}",
+                s.baud
+            ),
+        );
+        ok = false;
+    }
+    for (field, id) in [("main_id", s.main_id), ("stiffness_id", s.stiffness_id)] {
+        if id > 252 {
+            c.push(
+                &p.key(field),
+                format!("{id} is outside the Dynamixel ID range 0..=252"),
+            );
+            ok = false;
+        }
+    }
+    if s.main_id == s.stiffness_id {
+        c.push(
+            &p.key("stiffness_id"),
+            format!(
+                "equals main_id ({}): each servo needs its own ID",
+                s.main_id
+            ),
+        );
+        ok = false;
+    }
+    for (field, v) in [
+        ("main_protocol", s.main_protocol),
+        ("stiffness_protocol", s.stiffness_protocol),
+    ] {
+        if v != 1 && v != 2 {
+            c.push(
+                &p.key(field),
+                format!("{v} is not a Dynamixel protocol; use 1 or 2"),
+            );
+            ok = false;
+        }
+    }
+    ok.then(|| ServoConfig {
+        bus: s.bus.clone(),
+        baud: s.baud,
+        main_id: s.main_id,
+        main_model: s.main_model.clone(),
+        main_protocol: s.main_protocol,
+        stiffness_id: s.stiffness_id,
+        stiffness_model: s.stiffness_model.clone(),
+        stiffness_protocol: s.stiffness_protocol,
+    })
+}
+
+fn encoder(c: &mut Collector<'_>, p: &FieldPath, e: &RawEncoder) -> Option<EncoderConfig> {
+    let interface = c.one_of(
+        &p.key("interface"),
+        &e.interface,
+        &[
+            ("spi", EncoderInterface::Spi),
+            ("serial", EncoderInterface::Serial),
+        ],
+    );
+    if !(8..=24).contains(&e.bits) {
+        c.push(
+            &p.key("bits"),
+            format!("{} bits is outside [8, 24]", e.bits),
+        );
+        return None;
+    }
+    if e.kind.trim().is_empty() {
+        c.push(
+            &p.key("kind"),
+            "must name the encoder model, e.g. \"as5048a\"",
+        );
+        return None;
+    }
+    Some(EncoderConfig {
+        model: e.kind.clone(),
+        bits: e.bits,
+        interface: interface?,
+        resolution_rad: 2.0 * std::f64::consts::PI / f64::from(1u32 << e.bits),
+    })
+}
+
+fn lever(
+    c: &mut Collector<'_>,
+    p: &FieldPath,
+    j: &RawJoint,
+    resolution: f64,
+) -> Option<(JointKind, (f64, f64))> {
+    let lp = p.key("lever");
+    let Some(l) = j.lever.as_ref() else {
+        c.push(&lp, "a lever joint needs a [joint.lever] table (d0_mm, d_min_mm, d_max_mm, p_mm, k_alpha_nm_per_rad, spring_limit_deg)");
+        return None;
+    };
+    let mut ok = c.positive(&lp.key("d0_mm"), l.d0_mm);
+    ok &= c.non_negative(&lp.key("d_min_mm"), l.d_min_mm);
+    ok &= c.positive(&lp.key("d_max_mm"), l.d_max_mm);
+    ok &= c.positive(&lp.key("p_mm"), l.p_mm);
+    ok &= c.positive(&lp.key("k_alpha_nm_per_rad"), l.k_alpha_nm_per_rad);
+    if c.positive(&lp.key("spring_limit_deg"), l.spring_limit_deg) && l.spring_limit_deg >= 90.0 {
+        c.push(
+            &lp.key("spring_limit_deg"),
+            format!(
+                "{} deg is not a torsion-spring limit; must be < 90",
+                l.spring_limit_deg
+            ),
+        );
+        ok = false;
+    }
+    if !ok {
+        return None;
+    }
+    if l.d_min_mm >= l.d_max_mm {
+        c.push(
+            &lp.key("d_max_mm"),
+            format!(
+                "d range [{}, {}] mm is empty: need d_min_mm < d_max_mm",
+                l.d_min_mm, l.d_max_mm
+            ),
+        );
+        return None;
+    }
+    if l.d0_mm + l.d_max_mm >= l.p_mm {
+        c.push(
+            &lp.key("d_max_mm"),
+            format!(
+                "d range outside the mechanism: d0 + d_max = {} mm reaches the lever axis at p = {} mm; the pivot must stay between the main joint and the lever axis (d_max_mm < {})",
+                l.d0_mm + l.d_max_mm,
+                l.p_mm,
+                l.p_mm - l.d0_mm
+            ),
+        );
+        return None;
+    }
+    let vsa = LeverVsa {
+        p: l.p_mm * MM,
+        d0: l.d0_mm * MM,
+        d_min: l.d_min_mm * MM,
+        d_max: l.d_max_mm * MM,
+        k_alpha: l.k_alpha_nm_per_rad,
+        alpha_max: l.spring_limit_deg.to_radians(),
+    };
+    if let Err(e) = vsa.validate() {
+        c.push(&lp, e.to_string());
+        return None;
+    }
+    let rp = p.key("restoring");
+    let Some(r) = j.restoring.as_ref() else {
+        c.push(&rp, "a lever joint needs a [joint.restoring] table with at least one [[joint.restoring.point]] (fit one with the model's fitting routine)");
+        return None;
+    };
+    let counts = r.dead_band_counts.unwrap_or(1.0);
+    if c.finite(&rp.key("dead_band_counts"), counts) && counts < 1.0 {
+        c.push(&rp.key("dead_band_counts"), format!("{counts} is below one encoder count: the direction would flip on quantisation noise"));
+    }
+    if r.point.is_empty() {
+        c.push(
+            &rp.key("point"),
+            "needs at least one [[joint.restoring.point]]",
+        );
+        return None;
+    }
+    let mut table = Vec::new();
+    let mut prev = f64::NEG_INFINITY;
+    for (i, pt) in r.point.iter().enumerate() {
+        let pp = rp.key("point").index(i);
+        let mut ok = c.non_negative(&pp.key("d_mm"), pt.d_mm);
+        ok &= c.positive(&pp.key("k_nm_per_rad"), pt.k_nm_per_rad);
+        ok &= c.non_negative(&pp.key("h_nm"), pt.h_nm);
+        ok &= c.positive(&pp.key("a_s"), pt.a_s);
+        ok &= c.positive(&pp.key("n"), pt.n);
+        if !ok {
+            continue;
+        }
+        if pt.d_mm <= prev {
+            c.push(
+                &pp.key("d_mm"),
+                format!(
+                    "points must be sorted by strictly increasing d_mm ({} after {prev})",
+                    pt.d_mm
+                ),
+            );
+            continue;
+        }
+        if pt.d_mm < l.d_min_mm || pt.d_mm > l.d_max_mm {
+            c.push(
+                &pp.key("d_mm"),
+                format!(
+                    "{} mm is outside the pivot travel [{}, {}] mm",
+                    pt.d_mm, l.d_min_mm, l.d_max_mm
+                ),
+            );
+            continue;
+        }
+        prev = pt.d_mm;
+        table.push((
+            pt.d_mm * MM,
+            RestoringParams {
+                k: pt.k_nm_per_rad,
+                h: pt.h_nm,
+                a_s: pt.a_s,
+                n: pt.n,
+            },
+        ));
+    }
+    if table.len() != r.point.len() {
+        return None;
+    }
+    let restoring = match RestoringCurve::new(&table) {
+        Ok(curve) => curve,
+        Err(e) => {
+            c.push(&rp, e.to_string());
+            return None;
+        }
+    };
+    let range = vsa.stiffness_range();
+    Some((
+        JointKind::Lever {
+            vsa,
+            restoring,
+            dead_band_rad: counts.max(1.0) * resolution,
+        },
+        range,
+    ))
+}
+
+fn awas(c: &mut Collector<'_>, p: &FieldPath, j: &RawJoint) -> Option<(JointKind, (f64, f64))> {
+    let ap = p.key("awas");
+    let Some(a) = j.awas.as_ref() else {
+        c.push(&ap, "an AWAS joint needs a [joint.awas] table");
+        return None;
+    };
+    let fields = [
+        ("k_s_n_per_m", a.k_s_n_per_m),
+        ("r0_mm", a.r0_mm),
+        ("screw_lead_mm", a.screw_lead_mm),
+        ("r_min_mm", a.r_min_mm),
+        ("r_max_mm", a.r_max_mm),
+        ("link_inertia_kg_m2", a.link_inertia_kg_m2),
+        ("b1_kg_m2", a.b1_kg_m2),
+        ("b2_kg_m2", a.b2_kg_m2),
+    ];
+    let mut ok = true;
+    for (f, v) in fields {
+        ok &= c.positive(&ap.key(f), v);
+    }
+    for (f, v) in [
+        ("link_damping_nms_per_rad", a.link_damping_nms_per_rad),
+        ("d1_nms_per_rad", a.d1_nms_per_rad),
+        ("d2_nms_per_rad", a.d2_nms_per_rad),
+    ] {
+        ok &= c.non_negative(&ap.key(f), v);
+    }
+    if !ok {
+        return None;
+    }
+    let awas = Awas {
+        k_s: a.k_s_n_per_m,
+        r0: a.r0_mm * MM,
+        n: a.screw_lead_mm * MM / (2.0 * std::f64::consts::PI),
+        r_min: a.r_min_mm * MM,
+        r_max: a.r_max_mm * MM,
+    };
+    if let Err(e) = awas.validate() {
+        c.push(&ap.key("r_max_mm"), e.to_string());
+        return None;
+    }
+    let dynamics = AwasDynamics {
+        link_inertia: a.link_inertia_kg_m2,
+        link_damping: a.link_damping_nms_per_rad,
+        b1: a.b1_kg_m2,
+        d1: a.d1_nms_per_rad,
+        b2: a.b2_kg_m2,
+        d2: a.d2_nms_per_rad,
+    };
+    Some((JointKind::Awas { awas, dynamics }, awas.stiffness_range()))
+}
+
+fn limits(
+    c: &mut Collector<'_>,
+    p: &FieldPath,
+    l: &RawLimits,
+    kind: &JointKind,
+    range: (f64, f64),
+) -> Option<Limits> {
+    let mut ok = c.finite(&p.key("motor_min_deg"), l.motor_min_deg)
+        & c.finite(&p.key("motor_max_deg"), l.motor_max_deg);
+    if ok && l.motor_min_deg >= l.motor_max_deg {
+        c.push(
+            &p.key("motor_max_deg"),
+            format!(
+                "motor range [{}, {}] deg is empty",
+                l.motor_min_deg, l.motor_max_deg
+            ),
+        );
+        ok = false;
+    }
+    ok &= c.positive(&p.key("watchdog_ms"), l.watchdog_ms);
+    let (rate_field, rate, other_field, other, scale) = match kind {
+        JointKind::Lever { .. } => (
+            "pivot_rate_mm_per_s",
+            l.pivot_rate_mm_per_s,
+            "stiffness_motor_rate_deg_per_s",
+            l.stiffness_motor_rate_deg_per_s,
+            MM,
+        ),
+        JointKind::Awas { .. } => (
+            "stiffness_motor_rate_deg_per_s",
+            l.stiffness_motor_rate_deg_per_s,
+            "pivot_rate_mm_per_s",
+            l.pivot_rate_mm_per_s,
+            std::f64::consts::PI / 180.0,
+        ),
+    };
+    if other.is_some() {
+        c.push(
+            &p.key(other_field),
+            format!("does not apply to this joint kind; use {rate_field}"),
+        );
+        ok = false;
+    }
+    let rate = match rate {
+        Some(r) if c.positive(&p.key(rate_field), r) => r * scale,
+        Some(_) => return None,
+        None => {
+            c.push(
+                &p.key(rate_field),
+                "is required: the fastest allowed stiffness-actuator motion",
+            );
+            return None;
+        }
+    };
+    let (lo, hi) = range;
+    let k_min = l.k_min_nm_per_rad.unwrap_or(lo);
+    let k_max = l.k_max_nm_per_rad.unwrap_or(hi);
+    let tol = 1e-9 * hi;
+    if c.positive(&p.key("k_min_nm_per_rad"), k_min) && k_min < lo - tol {
+        c.push(&p.key("k_min_nm_per_rad"), format!("{k_min} N·m/rad is below what the mechanism reaches ({lo:.4} N·m/rad at the end of its travel)"));
+        ok = false;
+    }
+    if c.positive(&p.key("k_max_nm_per_rad"), k_max) && k_max > hi + tol {
+        c.push(&p.key("k_max_nm_per_rad"), format!("{k_max} N·m/rad is above what the mechanism reaches ({hi:.4} N·m/rad at the end of its travel)"));
+        ok = false;
+    }
+    if k_min >= k_max {
+        c.push(
+            &p.key("k_max_nm_per_rad"),
+            format!("stiffness range [{k_min}, {k_max}] N·m/rad is empty"),
+        );
+        ok = false;
+    }
+    ok.then(|| Limits {
+        motor_min_rad: l.motor_min_deg.to_radians(),
+        motor_max_rad: l.motor_max_deg.to_radians(),
+        stiffness_rate: rate,
+        k_min,
+        k_max,
+        watchdog_s: l.watchdog_ms * 1e-3,
+    })
+}
+
+fn observer(c: &mut Collector<'_>, raw: Option<&RawObserver>) -> Option<ObserverConfig> {
+    let p = FieldPath::default().key("observer");
+    let Some(o) = raw else {
+        // Paper A's experimental tuning.
+        return Some(ObserverConfig {
+            alpha: 8.0,
+            k0: 0.0,
+            q_diag: [1e-3; 4],
+            r_diag: [1e-3; 2],
+            p0_diag: [100.0; 4],
+        });
+    };
+    let mut ok = c.positive(&p.key("alpha"), o.alpha);
+    let k0 = o.k0_nm_per_rad.unwrap_or(0.0);
+    ok &= c.finite(&p.key("k0_nm_per_rad"), k0);
+    let mut arr = |c: &mut Collector<'_>,
+                   field: &'static str,
+                   v: &[f64],
+                   n: usize,
+                   strict: bool|
+     -> Vec<f64> {
+        if v.len() != n {
+            c.push(
+                &p.key(field),
+                format!("needs {n} values (a diagonal), got {}", v.len()),
+            );
+            ok = false;
+        }
+        for &x in v {
+            let good = if strict {
+                c.positive(&p.key(field), x)
+            } else {
+                c.non_negative(&p.key(field), x)
+            };
+            ok &= good;
+        }
+        v.to_vec()
+    };
+    let q = arr(c, "q_diag", &o.q_diag, 4, false);
+    let r = arr(c, "r_diag", &o.r_diag, 2, true);
+    let p0 = arr(c, "p0_diag", &o.p0_diag, 4, false);
+    if !ok {
+        return None;
+    }
+    Some(ObserverConfig {
+        alpha: o.alpha,
+        k0,
+        q_diag: [q[0], q[1], q[2], q[3]],
+        r_diag: [r[0], r[1]],
+        p0_diag: [p0[0], p0[1], p0[2], p0[3]],
+    })
+}
+
+fn zenoh(c: &mut Collector<'_>, raw: Option<&RawZenoh>) -> Option<ZenohConfig> {
+    let p = FieldPath::default().key("zenoh");
+    let Some(z) = raw else {
+        return Some(ZenohConfig {
+            mode: ZenohMode::Peer,
+            listen: vec![],
+            connect: vec![],
+        });
+    };
+    let mode = c.one_of(
+        &p.key("mode"),
+        &z.mode,
+        &[
+            ("peer", ZenohMode::Peer),
+            ("client", ZenohMode::Client),
+            ("router", ZenohMode::Router),
+        ],
+    );
+    let mut ok = true;
+    for (field, list) in [("listen", &z.listen), ("connect", &z.connect)] {
+        for (i, e) in list.iter().enumerate() {
+            if let Err(msg) = check_endpoint(e) {
+                c.push(&p.key(field).index(i), msg);
+                ok = false;
+            }
+        }
+    }
+    if mode == Some(ZenohMode::Client) && z.connect.is_empty() {
+        c.push(
+            &p.key("connect"),
+            "client mode needs at least one endpoint to connect to",
+        );
+        ok = false;
+    }
+    ok.then(|| ZenohConfig {
+        mode: mode.unwrap_or(ZenohMode::Peer),
+        listen: z.listen.clone(),
+        connect: z.connect.clone(),
+    })
+}
+
+/// A Zenoh endpoint: `<protocol>/<address>`, e.g. `tcp/127.0.0.1:7447`.
+pub fn check_endpoint(e: &str) -> Result<(), String> {
+    const PROTOS: [&str; 6] = ["tcp", "udp", "tls", "quic", "ws", "unixsock-stream"];
+    match e.split_once('/') {
+        Some((proto, addr)) if PROTOS.contains(&proto) && !addr.is_empty() => {
+            if proto != "unixsock-stream"
+                && !addr
+                    .rsplit_once(':')
+                    .is_some_and(|(_, port)| port.parse::<u16>().is_ok())
+            {
+                return Err(format!(
+                    "\"{e}\" needs a port: <protocol>/<host>:<port>, e.g. \"tcp/127.0.0.1:7447\""
+                ));
+            }
+            Ok(())
+        }
+        _ => Err(format!(
+            "\"{e}\" is not an endpoint; write <protocol>/<address> with protocol one of {PROTOS:?}, e.g. \"tcp/127.0.0.1:7447\""
+        )),
+    }
+}
