@@ -39,6 +39,14 @@ def _text(buf, off):
 
 
 def decode(buf):
+    """Decodes one payload; raises WireError for anything malformed."""
+    try:
+        return _decode(buf)
+    except (struct.error, UnicodeDecodeError, IndexError) as e:
+        raise WireError(f"malformed body: {e}") from e
+
+
+def _decode(buf):
     if len(buf) < 8:
         raise WireError("shorter than the header")
     magic, version, kind, n = struct.unpack_from("<2sBBI", buf)

@@ -106,7 +106,7 @@ pub enum JointKind {
     /// Paper B's lever VSA with its restoring-torque model.
     Lever {
         vsa: LeverVsa,
-        restoring: RestoringCurve,
+        restoring: Box<RestoringCurve>,
         dead_band_rad: f64,
     },
     /// Paper A's AWAS.

@@ -641,7 +641,7 @@ fn lever(
     Some((
         JointKind::Lever {
             vsa,
-            restoring,
+            restoring: Box::new(restoring),
             dead_band_rad: counts.max(1.0) * resolution,
         },
         range,
@@ -882,11 +882,11 @@ pub fn check_endpoint(e: &str) -> Result<(), String> {
     const PROTOS: [&str; 6] = ["tcp", "udp", "tls", "quic", "ws", "unixsock-stream"];
     match e.split_once('/') {
         Some((proto, addr)) if PROTOS.contains(&proto) && !addr.is_empty() => {
-            if proto != "unixsock-stream"
-                && !addr
-                    .rsplit_once(':')
-                    .is_some_and(|(_, port)| port.parse::<u16>().is_ok())
-            {
+            let has_port = addr
+                .rsplit_once(':')
+                .is_some_and(|(_, port)| port.parse::<u16>().is_ok());
+            let needs_port = proto != "unixsock-stream";
+            if needs_port && !has_port {
                 return Err(format!(
                     "\"{e}\" needs a port: <protocol>/<host>:<port>, e.g. \"tcp/127.0.0.1:7447\""
                 ));

@@ -1,1 +1,127 @@
-fn main() {}
+//! Criterion benchmarks of the hot paths of the model core:
+//! one EKF + stiffness-observer step, one restoring-torque step, one parallel (five-bar)
+//! force estimate from joint angles and torques, one allocation solve.
+//!
+//! Run: `cargo bench -p rig-model --bench model`.
+
+#![allow(clippy::unwrap_used, clippy::expect_used)]
+
+use std::hint::black_box;
+
+use criterion::{Criterion, criterion_group, criterion_main};
+use nalgebra::DVector;
+use rig_model::allocation::AllocationProblem;
+use rig_model::hysteresis::{
+    AS5048A_COUNT_RAD, RestoringCurve, RestoringParams, RestoringTorqueModel,
+};
+use rig_model::observer::{DecoupledObserver, EkfConfig, ImpedanceSample};
+use rig_model::planar::{
+    Elbow, FiveBar, FiveBarGeometry, PlanarRobot, end_effector_force, s_matrix,
+};
+
+fn five_bar() -> PlanarRobot {
+    PlanarRobot::FiveBar(
+        FiveBar::new(
+            FiveBarGeometry {
+                l1: 0.15,
+                l2: 0.15,
+                l3: 0.15,
+                l4: 0.15,
+                l5: 0.05,
+                lb: 0.15,
+            },
+            Elbow::Negative,
+            Elbow::Positive,
+        )
+        .unwrap(),
+    )
+}
+
+fn observer_step(c: &mut Criterion) {
+    let mut obs =
+        DecoupledObserver::new(EkfConfig::paper_a_simulation(1e-3), 2000.0, 0.0, None).unwrap();
+    let mut i = 0u64;
+    c.bench_function("observer/ekf+stiffness step", |b| {
+        b.iter(|| {
+            i += 1;
+            let t = i as f64 * 1e-3;
+            let q = 0.1 * t.sin();
+            let theta1 = 0.09 * t.sin();
+            let s = ImpedanceSample {
+                q,
+                theta1,
+                tau_e: Some(300.0 * (q - theta1)),
+                tau1: None,
+                tau_ext: 0.0,
+            };
+            black_box(obs.step(black_box(&s)).unwrap())
+        })
+    });
+}
+
+fn restoring_step(c: &mut Criterion) {
+    let table: Vec<(f64, RestoringParams)> = (0..5)
+        .map(|i| {
+            let d = i as f64 * 0.0045;
+            (
+                d,
+                RestoringParams {
+                    k: 0.25 + 15.0 * i as f64,
+                    h: 0.01,
+                    a_s: 2.0,
+                    n: 0.5,
+                },
+            )
+        })
+        .collect();
+    let mut m = RestoringTorqueModel::new(RestoringCurve::new(&table).unwrap(), AS5048A_COUNT_RAD);
+    let mut i = 0u64;
+    c.bench_function("restoring torque step", |b| {
+        b.iter(|| {
+            i += 1;
+            let phi = 0.1 * (i as f64 * 0.01).sin();
+            black_box(m.update(black_box(phi), black_box(0.009)))
+        })
+    });
+}
+
+fn parallel_force(c: &mut Criterion) {
+    let robot = five_bar();
+    let home = robot.at_position(0.075, 0.2).unwrap();
+    let (t1, t2) = (home.theta[0], home.theta[1]);
+    let tau = [0.3, -0.2, 0.5, 0.1];
+    c.bench_function(
+        "parallel force estimate (loop closure + Jacobians + F)",
+        |b| {
+            b.iter(|| {
+                let cfg = robot
+                    .from_independent(black_box(t1 + 1e-3), black_box(t2))
+                    .unwrap();
+                black_box(end_effector_force(&cfg.g_u_a, black_box(&tau)).unwrap())
+            })
+        },
+    );
+}
+
+fn allocation_solve(c: &mut Criterion) {
+    let cfg = five_bar().at_position(0.075, 0.2).unwrap();
+    let problem = AllocationProblem::new(
+        s_matrix(&cfg.g_u_a),
+        DVector::from_vec(vec![0.258, 0.175, 0.258, 0.183]),
+        DVector::from_vec(vec![50.0, 50.0, 60.0, 50.0]),
+    )
+    .unwrap();
+    let target = problem.decoupled_target(25.0).unwrap();
+    c.bench_function("allocation solve (BVLS + tie-break)", |b| {
+        b.iter(|| black_box(problem.solve(black_box(target)).unwrap()))
+    });
+}
+
+criterion_group!(
+    benches,
+    observer_step,
+    restoring_step,
+    parallel_force,
+    allocation_solve
+);
+criterion_main!(benches);

@@ -1,1 +1,56 @@
-fn main() {}
+//! `rig` — the VSA rig's command line.
+//!
+//! Where things come from, one hop away:
+//! - `rig validate` → [`validate`] → `rig_config::load`;
+//! - `rig allocate` → [`allocate`] → `rig_model::planar` (S matrix at the pose) and
+//!   `rig_model::allocation` (bounded least squares, tie-break) and `rig_model::lever`
+//!   (stiffness → pivot position).
+
+mod allocate;
+mod error;
+mod validate;
+
+use std::process::ExitCode;
+
+use clap::{Parser, Subcommand};
+
+/// The VSA rig: variable stiffness actuators on planar robots, from config to allocation.
+///
+/// Every rig is described by one TOML file (see rig-config/examples/). Units on the command
+/// line carry their name: millimetres for positions, N/m for operational stiffness.
+#[derive(Debug, Parser)]
+#[command(name = "rig", version, about, long_about = None, propagate_version = true)]
+struct Cli {
+    #[command(subcommand)]
+    command: Command,
+}
+
+#[derive(Debug, Subcommand)]
+enum Command {
+    /// Check rig config files; print a summary, or every problem with file, line and field.
+    ///
+    /// Exit status: 0 when every file is valid, 1 otherwise.
+    Validate(validate::Args),
+    /// Choose joint stiffnesses that give a wanted operational stiffness at a pose
+    /// (paper B eq. 31), and the pivot positions that set them.
+    ///
+    /// Exit status: 0 when the target is met, 3 when it cannot be (pose unreachable, target
+    /// outside the range, or not reachable exactly: the best compromise is still printed),
+    /// 1 for a bad config.
+    Allocate(allocate::Args),
+}
+
+fn main() -> ExitCode {
+    let cli = Cli::parse();
+    let result = match cli.command {
+        Command::Validate(a) => validate::run(&a),
+        Command::Allocate(a) => allocate::run(&a),
+    };
+    match result {
+        Ok(()) => ExitCode::SUCCESS,
+        Err(e) => {
+            eprintln!("error: {e}");
+            e.exit_code()
+        }
+    }
+}

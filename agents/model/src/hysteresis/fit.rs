@@ -191,7 +191,7 @@ fn fit_group(runs: &[&[FitSample]], opts: &FitOptions) -> Result<GroupFit, FitEr
     } else {
         (f64::NAN, f64::NAN)
     };
-    if !(both_ways.0 && both_ways.1) || !k0.is_finite() || k0 <= 0.0 {
+    if !(both_ways.0 && both_ways.1 && k0.is_finite() && k0 > 0.0) {
         return Err(FitError::NotASpring { d_m: d, slope: k0 });
     }
     let h0 = h0.max(1e-6 * peak.max(1e-9));

@@ -59,7 +59,7 @@ impl EkfConfig {
             .chain(&self.p0_diag)
             .chain(&self.x0)
             .all(|v| v.is_finite());
-        if !finite || !(self.ts.is_finite() && self.ts > 0.0) {
+        if !(finite && self.ts.is_finite() && self.ts > 0.0) {
             return Err(ObserverError::Config(
                 "EKF: Ts must be positive and every value finite".into(),
             ));

@@ -1,0 +1,58 @@
+//! `rig validate FILE…`
+
+use std::path::PathBuf;
+
+use rig_config::{JointKind, RigConfig};
+
+use crate::error::CliError;
+
+#[derive(Debug, clap::Args)]
+pub struct Args {
+    /// Rig config files (TOML), e.g. rig-config/examples/parallel.toml
+    #[arg(required = true, value_name = "FILE")]
+    files: Vec<PathBuf>,
+}
+
+pub fn run(args: &Args) -> Result<(), CliError> {
+    let mut failed = 0usize;
+    for f in &args.files {
+        match rig_config::load(f) {
+            Ok(cfg) => println!("ok: {}: {}", f.display(), summary(&cfg)),
+            Err(e) => {
+                eprintln!("{e}");
+                failed += 1;
+            }
+        }
+    }
+    match failed {
+        0 => Ok(()),
+        n => Err(CliError::Invalid(format!(
+            "{n} of {} config files invalid",
+            args.files.len()
+        ))),
+    }
+}
+
+fn summary(cfg: &RigConfig) -> String {
+    let kinds: Vec<String> = cfg
+        .joints
+        .iter()
+        .map(|j| {
+            let kind = match &j.kind {
+                JointKind::Lever { .. } => "lever",
+                JointKind::Awas { .. } => "awas",
+            };
+            format!(
+                "{} ({kind}, k {:.4}..{:.4} N·m/rad)",
+                j.name, j.limits.k_min, j.limits.k_max
+            )
+        })
+        .collect();
+    format!(
+        "rig \"{}\", {} topology at {} Hz; joints: {}",
+        cfg.name,
+        cfg.topology.name(),
+        cfg.rate_hz,
+        kinds.join(", ")
+    )
+}
