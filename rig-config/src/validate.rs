@@ -105,7 +105,7 @@ impl Checks for Collector<'_> {
 fn build(c: &mut Collector<'_>, raw: &RawConfig) -> Option<RigConfig> {
     let root = FieldPath::default();
     let rig = root.key("rig");
-    if let Err(e) = rig_protocol_name(&raw.rig.name) {
+    if let Err(e) = rig_protocol_name("rig", &raw.rig.name) {
         c.push(&rig.key("name"), e);
     }
     let topology = c.one_of(
@@ -147,7 +147,7 @@ fn build(c: &mut Collector<'_>, raw: &RawConfig) -> Option<RigConfig> {
     let mut ids: HashMap<(&str, u8), (usize, &'static str)> = HashMap::new();
     for (i, j) in raw.joint.iter().enumerate() {
         let p = jp.index(i);
-        if let Err(e) = rig_protocol_name(&j.name) {
+        if let Err(e) = rig_protocol_name("joint", &j.name) {
             c.push(&p.key("name"), e);
         }
         if let Some(first) = names.insert(&j.name, i) {
@@ -195,20 +195,9 @@ fn build(c: &mut Collector<'_>, raw: &RawConfig) -> Option<RigConfig> {
     })
 }
 
-/// Names used in key expressions: 1–64 of `[A-Za-z0-9_-]`.
-fn rig_protocol_name(name: &str) -> Result<(), String> {
-    let ok = !name.is_empty()
-        && name.len() <= 64
-        && name
-            .bytes()
-            .all(|b| b.is_ascii_alphanumeric() || b == b'_' || b == b'-');
-    if ok {
-        Ok(())
-    } else {
-        Err(format!(
-            "\"{name}\" is not a valid name: use 1 to 64 characters from A-Z a-z 0-9 _ -"
-        ))
-    }
+/// Names used in key expressions (rig, joint): 1–64 of `[A-Za-z0-9_-]`.
+fn rig_protocol_name(what: &'static str, name: &str) -> Result<(), String> {
+    rig_protocol::keys::check_name(what, name).map_err(|e| e.to_string())
 }
 
 fn geometry(c: &mut Collector<'_>, t: Topology, raw: Option<&RawGeometry>) -> Option<Geometry> {

@@ -424,7 +424,7 @@ fn free_solution(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::planar::{Elbow, FiveBar, FiveBarGeometry, PlanarRobot, SerialArm, s_matrix};
+    use crate::planar::{Elbow, FiveBar, PlanarRobot, SerialArm, s_matrix};
 
     /// Independent optimum: enumerate every active set (free / lower / upper), solve the free
     /// least-squares sub-problem, keep the feasible candidate with the least objective.
@@ -468,21 +468,7 @@ mod tests {
     }
 
     fn parallel_problem(x: f64, y: f64) -> AllocationProblem {
-        let robot = PlanarRobot::FiveBar(
-            FiveBar::new(
-                FiveBarGeometry {
-                    l1: 0.15,
-                    l2: 0.15,
-                    l3: 0.15,
-                    l4: 0.15,
-                    l5: 0.05,
-                    lb: 0.15,
-                },
-                Elbow::Negative,
-                Elbow::Positive,
-            )
-            .unwrap(),
-        );
+        let robot = PlanarRobot::FiveBar(FiveBar::example());
         let c = robot.at_position(x, y).unwrap();
         AllocationProblem::new(
             s_matrix(&c.g_u_a),

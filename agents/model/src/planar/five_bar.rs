@@ -45,6 +45,29 @@ pub struct FiveBar {
 }
 
 impl FiveBar {
+    /// The robot of `rig-config/examples/parallel.toml` (our choice; paper B gives no lengths):
+    /// 150 mm links, the passive joint 50 mm behind the end effector, chain 2's base 150 mm to
+    /// the right; θ2 negative, θ4 positive.
+    pub fn example() -> Self {
+        let geometry = FiveBarGeometry {
+            l1: 0.15,
+            l2: 0.15,
+            l3: 0.15,
+            l4: 0.15,
+            l5: 0.05,
+            lb: 0.15,
+        };
+        Self {
+            geometry,
+            chain1: SerialArm {
+                l1: 0.15,
+                l2: 0.15,
+                elbow: Elbow::Negative,
+            },
+            elbow2: Elbow::Positive,
+        }
+    }
+
     /// `elbow1` is the sign of θ2, `elbow2` the sign of θ4.
     pub fn new(
         geometry: FiveBarGeometry,
@@ -154,19 +177,7 @@ mod tests {
     use super::*;
 
     fn robot() -> FiveBar {
-        FiveBar::new(
-            FiveBarGeometry {
-                l1: 0.15,
-                l2: 0.15,
-                l3: 0.15,
-                l4: 0.15,
-                l5: 0.05,
-                lb: 0.15,
-            },
-            Elbow::Negative,
-            Elbow::Positive,
-        )
-        .unwrap()
+        FiveBar::example()
     }
 
     #[test]

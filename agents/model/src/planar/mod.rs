@@ -195,21 +195,7 @@ mod tests {
     use super::*;
 
     fn five_bar() -> PlanarRobot {
-        PlanarRobot::FiveBar(
-            FiveBar::new(
-                FiveBarGeometry {
-                    l1: 0.15,
-                    l2: 0.15,
-                    l3: 0.15,
-                    l4: 0.15,
-                    l5: 0.05,
-                    lb: 0.15,
-                },
-                Elbow::Negative,
-                Elbow::Positive,
-            )
-            .unwrap(),
-        )
+        PlanarRobot::FiveBar(FiveBar::example())
     }
 
     fn serial() -> PlanarRobot {
