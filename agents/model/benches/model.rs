@@ -15,9 +15,7 @@ use rig_model::hysteresis::{
     AS5048A_COUNT_RAD, RestoringCurve, RestoringParams, RestoringTorqueModel,
 };
 use rig_model::observer::{DecoupledObserver, EkfConfig, ImpedanceSample};
-use rig_model::planar::{
-    Elbow, FiveBar, FiveBarGeometry, PlanarRobot, end_effector_force, s_matrix,
-};
+use rig_model::planar::{FiveBar, PlanarRobot, end_effector_force, s_matrix};
 
 fn five_bar() -> PlanarRobot {
     PlanarRobot::FiveBar(FiveBar::example())
