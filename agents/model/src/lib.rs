@@ -11,11 +11,13 @@
 //! | [`awas`] | the AWAS joint of paper A | paper A eqs. 16–20 |
 //! | [`observer`] | EKF for inertia/damping and the stiffness observer | paper A §III |
 //! | [`planar`] | serial and five-bar kinematics, Jacobians, force, stiffness, S | paper B §4 |
+//! | [`estimator`] | joint samples → torques, end-effector force, K_uu (sans I/O) | paper B §3–4 |
 //! | [`allocation`] | bounded least squares for joint stiffnesses, tie-break, pivots | paper B §4.3 |
 //! | [`pchip`] | monotone C¹ interpolation (parameters smooth in d) | — |
 
 pub mod allocation;
 pub mod awas;
+pub mod estimator;
 pub mod hysteresis;
 pub mod lever;
 pub mod observer;
