@@ -222,6 +222,29 @@ impl RigConfig {
     }
 }
 
+/// The example configs, compiled in so that commands work from any directory.
+pub mod examples {
+    /// `rig-config/examples/parallel.toml`.
+    pub const PARALLEL: &str = include_str!("../examples/parallel.toml");
+    /// `rig-config/examples/serial.toml`.
+    pub const SERIAL: &str = include_str!("../examples/serial.toml");
+    /// `rig-config/examples/awas.toml`.
+    pub const AWAS: &str = include_str!("../examples/awas.toml");
+
+    /// Parses one of the examples by name: "parallel", "serial" or "awas".
+    pub fn load(name: &str) -> Result<super::RigConfig, super::ConfigErrors> {
+        let src = match name {
+            "serial" => SERIAL,
+            "awas" => AWAS,
+            _ => PARALLEL,
+        };
+        super::parse(
+            std::path::Path::new(&format!("rig-config/examples/{name}.toml")),
+            src,
+        )
+    }
+}
+
 /// Reads and validates a config file.
 pub fn load(path: &Path) -> Result<RigConfig, ConfigErrors> {
     let src = std::fs::read_to_string(path).map_err(|e| {

@@ -4,10 +4,16 @@
 //! - `rig validate` → [`validate`] → `rig_config::load`;
 //! - `rig allocate` → [`allocate`] → `rig_model::planar` (S matrix at the pose) and
 //!   `rig_model::allocation` (bounded least squares, tie-break) and `rig_model::lever`
-//!   (stiffness → pivot position).
+//!   (stiffness → pivot position);
+//! - `rig sim` → [`sim`] → `rig_sim::scenario` (plants, sensors, undeclared effects);
+//! - `rig reproduce` → [`reproduce`] → `rig_sim::reproduce` (the papers' experiments); the
+//!   end-effector force there comes from `rig_model::estimator::RobotEstimator`.
 
 mod allocate;
 mod error;
+mod progress;
+mod reproduce;
+mod sim;
 mod validate;
 
 use std::process::ExitCode;
@@ -38,6 +44,13 @@ enum Command {
     /// outside the range, or not reachable exactly: the best compromise is still printed),
     /// 1 for a bad config.
     Allocate(allocate::Args),
+    /// Run a simulation scenario (TOML) and write its sensor stream as CSV.
+    ///
+    /// Scenarios pick a plant (lever-bench, awas, serial, parallel), the excitation, the
+    /// sensors and any undeclared effects; see agents/sim/scenarios/ for examples.
+    Sim(sim::Args),
+    /// Reproduce a paper's experiments in simulation and print our numbers beside its own.
+    Reproduce(reproduce::Args),
 }
 
 fn main() -> ExitCode {
@@ -45,6 +58,8 @@ fn main() -> ExitCode {
     let result = match cli.command {
         Command::Validate(a) => validate::run(&a),
         Command::Allocate(a) => allocate::run(&a),
+        Command::Sim(a) => sim::run(&a),
+        Command::Reproduce(a) => reproduce::run(&a),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,

@@ -256,3 +256,142 @@ fn a_target_met_only_approximately_is_reported_with_the_compromise() {
     assert!(f(&v["residual"]) > 1.0);
     assert!(text(&out.stderr).contains("cannot be met exactly"));
 }
+
+#[test]
+fn sim_writes_every_example_scenario_as_csv() {
+    let dir = std::env::temp_dir().join(format!("rig-sim-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    for name in [
+        "lever-bench",
+        "lever-bench-friction",
+        "awas",
+        "parallel-strokes",
+        "serial-strokes",
+    ] {
+        // A shortened copy of each example: same content, 0.5 s.
+        let src = std::fs::read_to_string(
+            root()
+                .join("agents/sim/scenarios")
+                .join(format!("{name}.toml")),
+        )
+        .unwrap();
+        let short: String = src
+            .lines()
+            .map(|l| {
+                if l.starts_with("duration_s") {
+                    "duration_s = 0.5".to_string()
+                } else {
+                    l.to_string()
+                }
+            })
+            .collect::<Vec<_>>()
+            .join("\n");
+        let scen = dir.join(format!("{name}.toml"));
+        std::fs::write(&scen, short).unwrap();
+        let out = dir.join(format!("{name}.csv"));
+        let o = rig(&[
+            "sim",
+            "--scenario",
+            scen.to_str().unwrap(),
+            "--out",
+            out.to_str().unwrap(),
+        ]);
+        assert!(o.status.success(), "{name}: {}", text(&o.stderr));
+        let csv = std::fs::read_to_string(&out).unwrap();
+        let mut lines = csv.lines();
+        let header: Vec<&str> = lines.next().unwrap().split(',').collect();
+        assert_eq!(header[0], "t");
+        let rows: Vec<Vec<f64>> = lines
+            .map(|l| l.split(',').map(|v| v.parse().unwrap()).collect())
+            .collect();
+        assert_eq!(rows.len(), 500, "{name}");
+        assert!(
+            rows.iter()
+                .all(|r| r.len() == header.len() && r.iter().all(|v| v.is_finite()))
+        );
+    }
+    // A broken scenario names the problem; a non-CSV output is refused.
+    let bad = dir.join("bad.toml");
+    std::fs::write(&bad, "kind = \"lever-bench\"\nduration_s = 1.0\n").unwrap();
+    let o = rig(&[
+        "sim",
+        "--scenario",
+        bad.to_str().unwrap(),
+        "--out",
+        dir.join("x.csv").to_str().unwrap(),
+    ]);
+    assert_eq!(o.status.code(), Some(1));
+    assert!(
+        text(&o.stderr).contains("[lever_bench]"),
+        "{}",
+        text(&o.stderr)
+    );
+    let scen = root().join("agents/sim/scenarios/awas.toml");
+    let o = rig(&[
+        "sim",
+        "--scenario",
+        scen.to_str().unwrap(),
+        "--out",
+        dir.join("x.parquet").to_str().unwrap(),
+    ]);
+    assert_eq!(o.status.code(), Some(1));
+    std::fs::remove_dir_all(&dir).ok();
+}
+
+#[test]
+fn reproduce_paper_a_json_has_the_documented_shape() {
+    let o = rig(&["reproduce", "paper-a", "--quick", "--json"]);
+    assert!(o.status.success(), "{}", text(&o.stderr));
+    let v: Value = serde_json::from_slice(&o.stdout).unwrap();
+    let s = v["scenarios"].as_array().unwrap();
+    assert_eq!(s.len(), 4);
+    for row in s {
+        for key in [
+            "name",
+            "noisy",
+            "tuning",
+            "stiffness_rel_err",
+            "damping_rel_err",
+            "inertia_rel_err",
+            "convergence_s",
+        ] {
+            assert!(row.get(key).is_some(), "missing {key}");
+        }
+        assert!(row["tuning"] == "paper" || row["tuning"] == "ours");
+    }
+    let noisy_ours = s
+        .iter()
+        .find(|r| r["noisy"] == true && r["tuning"] == "ours")
+        .unwrap();
+    assert!(f(&noisy_ours["stiffness_rel_err"]) <= 0.01);
+}
+
+#[test]
+fn reproduce_paper_b_json_has_the_documented_shape() {
+    let o = rig(&["reproduce", "paper-b", "--quick", "--json"]);
+    assert!(o.status.success(), "{}", text(&o.stderr));
+    let v: Value = serde_json::from_slice(&o.stdout).unwrap();
+    for (table, keys) in [
+        ("torque_mae", &["d_mm", "mae_nm", "peak_nm"][..]),
+        ("force", &["robot", "axis", "rmse_pct_of_peak"][..]),
+        (
+            "decoupling",
+            &["percent", "spike_before_n", "spike_after_n"][..],
+        ),
+    ] {
+        let rows = v[table].as_array().unwrap();
+        assert!(!rows.is_empty(), "{table}");
+        for row in rows {
+            for key in keys {
+                assert!(row.get(*key).is_some(), "{table}: missing {key}");
+            }
+        }
+    }
+    let percents: Vec<f64> = v["decoupling"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|r| f(&r["percent"]))
+        .collect();
+    assert_eq!(percents, vec![12.5, 25.0, 37.5]);
+}

@@ -25,11 +25,13 @@ pub struct SpringHysteresis {
 }
 
 impl Default for SpringHysteresis {
-    /// Our choice: 20 % of the spring torque is hysteretic, saturating at z_max = 0.05 rad
-    /// of spring angle; a stop 20× stiffer than the spring.
+    /// Our choice (paper B shows loops, but its numbers are lost): 5 % of the spring torque is
+    /// hysteretic, saturating at z_max = 0.05 rad of spring angle — loop half-widths of
+    /// 1–5 % of the peak torque over the robots' working deflections; a stop 20× stiffer than
+    /// the spring.
     fn default() -> Self {
         Self {
-            a: 0.8,
+            a: 0.95,
             beta: 15.0,
             gamma: 5.0,
             stop_ratio: 20.0,

@@ -7,9 +7,13 @@
 //! - [`planar_rig`]: paper B's serial and parallel robots pushed along guide lines;
 //! - [`effects`]: effects a scenario switches on without telling the estimator;
 //! - [`noise`]: seeded noise, quantisation, delay, backlash;
+//! - [`scenario`]: scenarios as TOML files, run into a sensor stream;
+//! - [`reproduce`]: the papers' experiments, estimators fed with sensor data only.
 
 pub mod awas_plant;
 pub mod effects;
 pub mod lever_joint;
 pub mod noise;
 pub mod planar_rig;
+pub mod reproduce;
+pub mod scenario;

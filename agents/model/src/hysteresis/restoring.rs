@@ -48,23 +48,28 @@ impl RestoringParams {
 }
 
 /// Parameters as smooth (C¹, monotone-preserving) functions of the pivot position d [m].
+///
+/// k and A_s span decades over the pivot travel (the lever's k ∝ (d_a/(p − d_a))²), so they
+/// are interpolated in log space, which is nearly linear in d for the lever; h and n are
+/// interpolated as they are. Between two nodes every value stays within its neighbours'.
 #[derive(Debug, Clone, PartialEq)]
 pub struct RestoringCurve {
-    k: Pchip,
+    ln_k: Pchip,
     h: Pchip,
-    a_s: Pchip,
+    ln_a_s: Pchip,
     n: Pchip,
 }
 
 impl RestoringCurve {
-    /// Builds the curve from a table of `(d [m], params)` with strictly increasing d.
+    /// Builds the curve from a table of `(d [m], params)` with strictly increasing d and
+    /// positive k and A_s.
     pub fn new(table: &[(f64, RestoringParams)]) -> Result<Self, InterpError> {
         let d: Vec<f64> = table.iter().map(|(d, _)| *d).collect();
         let col = |f: fn(&RestoringParams) -> f64| table.iter().map(|(_, p)| f(p)).collect();
         Ok(Self {
-            k: Pchip::new(d.clone(), col(|p| p.k))?,
+            ln_k: Pchip::new(d.clone(), col(|p| p.k.ln()))?,
             h: Pchip::new(d.clone(), col(|p| p.h))?,
-            a_s: Pchip::new(d.clone(), col(|p| p.a_s))?,
+            ln_a_s: Pchip::new(d.clone(), col(|p| p.a_s.ln()))?,
             n: Pchip::new(d, col(|p| p.n))?,
         })
     }
@@ -78,16 +83,37 @@ impl RestoringCurve {
     /// The parameters at pivot position `d` (end values held outside the table).
     pub fn at(&self, d: f64) -> RestoringParams {
         RestoringParams {
-            k: self.k.eval(d),
+            k: self.ln_k.eval(d).exp(),
             h: self.h.eval(d),
-            a_s: self.a_s.eval(d),
+            a_s: self.ln_a_s.eval(d).exp(),
             n: self.n.eval(d),
         }
     }
 
+    /// The pivot position in [d_lo, d_hi] where the envelope slope k(d) equals `k`, by
+    /// bisection (k(d) must be monotone there, as a calibrated VSA's is). `None` outside.
+    pub fn pivot_for_stiffness(&self, k: f64, d_lo: f64, d_hi: f64) -> Option<f64> {
+        let (k_lo, k_hi) = (self.at(d_lo).k, self.at(d_hi).k);
+        let rising = k_hi >= k_lo;
+        let (lo_k, hi_k) = if rising { (k_lo, k_hi) } else { (k_hi, k_lo) };
+        if !k.is_finite() || k < lo_k || k > hi_k {
+            return None;
+        }
+        let (mut a, mut b) = (d_lo, d_hi);
+        for _ in 0..100 {
+            let m = 0.5 * (a + b);
+            if (self.at(m).k < k) == rising {
+                a = m;
+            } else {
+                b = m;
+            }
+        }
+        Some(0.5 * (a + b))
+    }
+
     /// The table the curve was built from.
     pub fn table(&self) -> Vec<(f64, RestoringParams)> {
-        self.k
+        self.ln_k
             .nodes()
             .iter()
             .enumerate()
@@ -95,9 +121,9 @@ impl RestoringCurve {
                 (
                     d,
                     RestoringParams {
-                        k: self.k.values()[i],
+                        k: self.ln_k.values()[i].exp(),
                         h: self.h.values()[i],
-                        a_s: self.a_s.values()[i],
+                        a_s: self.ln_a_s.values()[i].exp(),
                         n: self.n.values()[i],
                     },
                 )
@@ -433,11 +459,26 @@ mod tests {
             n: 0.7,
         };
         let c = RestoringCurve::new(&[(0.0, p0), (0.018, p1)]).unwrap();
-        assert_eq!(c.at(-1.0), p0);
-        assert_eq!(c.at(1.0), p1);
+        // Ends held (k and A_s round-trip through ln/exp: equal to rounding).
+        let close = |a: RestoringParams, b: RestoringParams| {
+            (a.k - b.k).abs() < 1e-12 * b.k
+                && a.h == b.h
+                && (a.a_s - b.a_s).abs() < 1e-12 * b.a_s
+                && a.n == b.n
+        };
+        assert!(close(c.at(-1.0), p0));
+        assert!(close(c.at(1.0), p1));
+        // Two nodes: geometric interpolation of k (linear in ln k), arithmetic of h.
         let mid = c.at(0.009);
-        assert!((mid.k - 32.625).abs() < 1e-9);
+        assert!((mid.k - (0.25f64 * 65.0).sqrt()).abs() < 1e-9);
+        assert!((mid.h - 0.155).abs() < 1e-12);
         assert_eq!(c.table().len(), 2);
+        assert!((c.table()[1].1.k - 65.0).abs() < 1e-12);
+        let d = c
+            .pivot_for_stiffness((0.25f64 * 65.0).sqrt(), 0.0, 0.018)
+            .unwrap();
+        assert!((d - 0.009).abs() < 1e-12);
+        assert!(c.pivot_for_stiffness(70.0, 0.0, 0.018).is_none());
         assert!(RestoringCurve::new(&[(0.01, p0), (0.0, p1)]).is_err());
     }
 

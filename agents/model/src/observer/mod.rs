@@ -105,6 +105,13 @@ impl DecoupledObserver {
         })
     }
 
+    /// Uses `window`-sample differences in the stiffness observer (see
+    /// [`StiffnessObserver::with_window`]).
+    pub fn with_window(mut self, window: usize) -> Self {
+        self.stiffness = self.stiffness.with_window(window);
+        self
+    }
+
     /// Feeds one sample. A sample with non-finite values is refused; state is unchanged.
     pub fn step(&mut self, s: &ImpedanceSample) -> Result<ImpedanceEstimate, ObserverError> {
         let finite = [Some(s.q), Some(s.theta1), s.tau_e, s.tau1, Some(s.tau_ext)]

@@ -21,7 +21,9 @@ pub struct StiffnessObserver {
     alpha: f64,
     ts: f64,
     k_hat: f64,
-    prev: Option<(f64, f64)>,
+    window: usize,
+    /// The last `window` + 1 samples of (τ_E, φ).
+    history: std::collections::VecDeque<(f64, f64)>,
 }
 
 impl StiffnessObserver {
@@ -36,8 +38,19 @@ impl StiffnessObserver {
             alpha,
             ts,
             k_hat: k0,
-            prev: None,
+            window: 1,
+            history: std::collections::VecDeque::with_capacity(2),
         })
+    }
+
+    /// Differences over `window` samples instead of one: x^D = (x_k − x_{k−w})/(w·Ts).
+    /// With quantised encoders a one-sample difference of φ is mostly 0 or ±1 count; a
+    /// window of w samples resolves w times finer rates, at the price of w/2 samples of lag.
+    /// Paper A uses w = 1.
+    pub fn with_window(mut self, window: usize) -> Self {
+        self.window = window.max(1);
+        self.history = std::collections::VecDeque::with_capacity(self.window + 1);
+        self
     }
 
     /// The estimate K̂ [N·m/rad].
@@ -52,9 +65,16 @@ impl StiffnessObserver {
                 "stiffness observer input (tau_e, phi)",
             ));
         }
-        if let Some((tau_prev, phi_prev)) = self.prev {
-            let tau_d = (tau_e - tau_prev) / self.ts;
-            let phi_d = (phi - phi_prev) / self.ts;
+        self.history.push_back((tau_e, phi));
+        if self.history.len() > self.window + 1 {
+            self.history.pop_front();
+        }
+        if self.history.len() == self.window + 1
+            && let Some(&(tau_old, phi_old)) = self.history.front()
+        {
+            let span = self.window as f64 * self.ts;
+            let tau_d = (tau_e - tau_old) / span;
+            let phi_d = (phi - phi_old) / span;
             let err = tau_d - self.k_hat * phi_d;
             let sgn = if phi_d > 0.0 {
                 1.0
@@ -65,7 +85,6 @@ impl StiffnessObserver {
             };
             self.k_hat += self.alpha * err * sgn * self.ts;
         }
-        self.prev = Some((tau_e, phi));
         Ok(self.k_hat)
     }
 }
@@ -113,6 +132,30 @@ mod tests {
         obs.step(1.5, 0.02).unwrap();
         obs.step(2.0, 0.02).unwrap();
         assert_eq!(obs.stiffness(), k_before);
+    }
+
+    #[test]
+    fn a_window_resolves_slow_rates_through_quantisation() {
+        // A quantised encoder (1e-3 rad counts) on a slow sinusoid: one-sample differences
+        // are 0 or one count; a 20-sample window recovers K much more closely.
+        let k_true = 200.0;
+        let run = |window: usize| {
+            let mut obs = StiffnessObserver::new(30.0, 1e-3, 150.0)
+                .unwrap()
+                .with_window(window);
+            let mut err = 0.0;
+            for i in 0..40_000 {
+                let phi = 0.02 * (i as f64 * 2e-3).sin();
+                let q = (phi / 1e-3).round() * 1e-3;
+                let k = obs.step(k_true * phi, q).unwrap();
+                if i >= 20_000 {
+                    err += (k - k_true).abs() / k_true / 20_000.0;
+                }
+            }
+            err
+        };
+        let (one, twenty) = (run(1), run(20));
+        assert!(twenty < 0.5 * one, "window 1: {one}, window 20: {twenty}");
     }
 
     #[test]
