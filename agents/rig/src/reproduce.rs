@@ -29,6 +29,13 @@ pub struct Args {
     /// Seed of every noise source and excitation path
     #[arg(long, default_value_t = 1)]
     seed: u64,
+    /// Paper B: stroke amplitude along each guide line [mm] (default 6)
+    #[arg(long, value_name = "MM")]
+    stroke_mm: Option<f64>,
+    /// Paper B: hysteretic fraction of the simulated spring torque, 1 − a of Bouc-Wen
+    /// (default 0.05)
+    #[arg(long, value_name = "F")]
+    hysteresis_fraction: Option<f64>,
 }
 
 fn json<T: serde::Serialize>(v: &T) -> Result<(), CliError> {
@@ -58,7 +65,7 @@ pub fn run(args: &Args) -> Result<(), CliError> {
             if args.json { json(&r) } else { print_a(&r, &o) }
         }
         Paper::PaperB => {
-            let o = PaperBOptions {
+            let mut o = PaperBOptions {
                 seed: args.seed,
                 ..if args.quick {
                     PaperBOptions::quick()
@@ -66,6 +73,22 @@ pub fn run(args: &Args) -> Result<(), CliError> {
                     PaperBOptions::full()
                 }
             };
+            if let Some(mm) = args.stroke_mm {
+                if !(mm.is_finite() && mm > 0.0 && mm <= 50.0) {
+                    return Err(CliError::Invalid(format!(
+                        "--stroke-mm {mm} must be in (0, 50]"
+                    )));
+                }
+                o.stroke_amplitude_m = mm * 1e-3;
+            }
+            if let Some(f) = args.hysteresis_fraction {
+                if !(f.is_finite() && (0.0..1.0).contains(&f)) {
+                    return Err(CliError::Invalid(format!(
+                        "--hysteresis-fraction {f} must be in [0, 1)"
+                    )));
+                }
+                o.hysteresis.a = 1.0 - f;
+            }
             let serial = rig_config::examples::load("serial")?;
             let parallel = rig_config::examples::load("parallel")?;
             let r = paper_b::run(&serial, &parallel, &o, &mut stage).map_err(err)?;
