@@ -33,7 +33,8 @@
 //!
 //! Columns (SI, units in the names; lever-bench uses the short names `rig identify` reads):
 //! - lever-bench: `t, phi, tau, d` (s, rad, N·m, mm), then `true_phi, true_tau`;
-//! - awas: `t, q, theta1, theta2, tau_e, tau, tau1, tau2` (s, rad, N·m; `tau` is the net
+//! - awas: `t, q, theta1, theta2, tau_e, tau, tau1, tau2` (s, rad, N·m; θ2 quantised to
+//!   2π/4096; `tau` is the net
 //!   torque on the link, τ_ext − τ_E), then `true_stiffness_nm_per_rad, true_q`;
 //! - serial/parallel: `t, x_m, y_m, fx_n, fy_n`, per joint `j<i>_motor_rad, j<i>_phi_rad,
 //!   j<i>_d_mm`, then `true_fx_n, true_fy_n` and per joint `j<i>_true_tau_nm`.
@@ -51,6 +52,10 @@ use crate::lever_joint::{LeverJointPlant, SpringHysteresis};
 use crate::noise::{DelayLine, Noise, quantize};
 use crate::planar_rig::{PlanarRigSim, PlanarSensors, Stroke};
 use crate::reproduce::paper_b::bench_path;
+
+/// The stiffness motor's incremental encoder: 4096 counts per revolution of the ball-screw
+/// motor (its angle runs over hundreds of radians, so it needs no absolute encoder).
+pub const THETA2_RESOLUTION_RAD: f64 = std::f64::consts::TAU / 4096.0;
 
 /// Errors of loading or running a scenario.
 #[derive(Debug, Error)]
@@ -380,7 +385,7 @@ pub fn run(
                     t,
                     q,
                     quantize(st.theta1, res),
-                    st.theta2,
+                    quantize(st.theta2, THETA2_RESOLUTION_RAD),
                     tau_e,
                     u.tau_ext - tau_e,
                     u.tau1,
