@@ -19,11 +19,14 @@ KINDS = {
     2: ("joint_command", "<HHQQdddB",
         ["joint", "flags", "seq", "t_ns"],
         ["motor_goal_rad", "pivot_goal_m", "stiffness_motor_goal_rad"]),
+    8: ("sim_truth", "<HQQddd",
+        ["joint", "seq", "t_acq_ns", "deflection_rad", "torque_nm", "link_rad"],
+        []),
     4: ("joint_estimate", "<HHQQddddddd",
         ["joint", "flags", "seq", "t_acq_ns", "torque_nm"],
         ["stiffness_nm_per_rad", "inertia_kg_m2", "inertia_var", "damping_nms_per_rad", "damping_var", "residual_nm"]),
 }
-STATES = ["ok", "rejected", "safe_hold", "fault", "stopped"]
+STATES = ["ok", "rejected", "safe_hold", "fault", "stopped", "stale"]
 
 
 class WireError(ValueError):
@@ -66,7 +69,7 @@ def _decode(buf):
             out[key] = v if out["flags"] & (1 << i) else None
         if kind == 2:
             out["torque_enable"] = bool(vals[-1])
-        del out["flags"]
+        out.pop("flags", None)
     elif kind == 3:
         joint, state, seq, t_ns = struct.unpack_from("<HBQQ", body)
         text, end = _text(body, struct.calcsize("<HBQQ"))

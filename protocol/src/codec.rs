@@ -31,6 +31,7 @@ pub enum Kind {
     EeEstimate = 5,
     AllocationRequest = 6,
     AllocationResult = 7,
+    SimTruth = 8,
 }
 
 impl Kind {
@@ -44,6 +45,7 @@ impl Kind {
             5 => Kind::EeEstimate,
             6 => Kind::AllocationRequest,
             7 => Kind::AllocationResult,
+            8 => Kind::SimTruth,
             _ => return None,
         })
     }

@@ -9,6 +9,8 @@
 //! rig/<rig>/allocate                allocator queryable    request → allocation
 //! rig/<rig>/stiffness/goal          operator → allocator   continuous goal
 //! rig/<rig>/alive/<role>/<id>       liveliness tokens
+//! rig/<rig>/estimate/status         estimator → all        joint stale / resumed (kind 3)
+//! rig/<rig>/sim/joint/<j>/truth     simulated agents only  the truth no sensor reads
 //! ```
 //!
 //! `<rig>`, `<j>`, `<role>` and `<id>` are names of 1–64 characters from `[A-Za-z0-9_-]`, so
@@ -84,6 +86,15 @@ impl Keys {
         Ok(format!("{}/estimate/joint/{j}", self.prefix))
     }
 
+    pub fn estimator_status(&self) -> String {
+        format!("{}/estimate/status", self.prefix)
+    }
+
+    pub fn sim_truth(&self, j: &str) -> Result<String, KeyError> {
+        check_name("joint", j)?;
+        Ok(format!("{}/sim/joint/{j}/truth", self.prefix))
+    }
+
     pub fn ee_estimate(&self) -> String {
         format!("{}/estimate/ee", self.prefix)
     }
@@ -136,6 +147,13 @@ pub enum Topic {
         role: String,
         id: String,
     },
+    EstimatorStatus {
+        rig: String,
+    },
+    SimTruth {
+        rig: String,
+        joint: String,
+    },
 }
 
 impl Topic {
@@ -168,6 +186,11 @@ impl Topic {
                 joint: name("joint", j)?,
             },
             ["estimate", "ee"] => Topic::EeEstimate { rig: r },
+            ["estimate", "status"] => Topic::EstimatorStatus { rig: r },
+            ["sim", "joint", j, "truth"] => Topic::SimTruth {
+                rig: r,
+                joint: name("joint", j)?,
+            },
             ["allocate"] => Topic::Allocate { rig: r },
             ["stiffness", "goal"] => Topic::StiffnessGoal { rig: r },
             ["alive", role, id] => Topic::Alive {
@@ -247,6 +270,19 @@ mod tests {
             assert_eq!(Topic::parse(&key).unwrap(), topic, "{key}");
         }
         assert_eq!(k.joint_sample("j1").unwrap(), "rig/lab-1/joint/j1/sample");
+        assert_eq!(
+            Topic::parse(&k.estimator_status()).unwrap(),
+            Topic::EstimatorStatus {
+                rig: "lab-1".into()
+            }
+        );
+        assert_eq!(
+            Topic::parse(&k.sim_truth("j2").unwrap()).unwrap(),
+            Topic::SimTruth {
+                rig: "lab-1".into(),
+                joint: "j2".into()
+            }
+        );
         assert_eq!(k.all(), "rig/lab-1/**");
     }
 

@@ -17,6 +17,6 @@ pub use codec::{DecodeError, Kind, MAGIC, VERSION};
 pub use keys::{KeyError, Keys, Topic};
 pub use messages::{
     AllocationRequest, AllocationResult, AllocationTarget, AnyMessage, EeEstimate, JointCommand,
-    JointEstimate, JointSample, JointState, JointStatus, Message, StiffnessTriple, ValidationError,
-    decode, decode_any, encode,
+    JointEstimate, JointSample, JointState, JointStatus, Message, SimTruth, StiffnessTriple,
+    ValidationError, decode, decode_any, encode,
 };

@@ -122,6 +122,7 @@ pub enum AnyMessage {
     EeEstimate(EeEstimate),
     AllocationRequest(AllocationRequest),
     AllocationResult(AllocationResult),
+    SimTruth(SimTruth),
 }
 
 /// Decodes whatever message the bytes hold.
@@ -135,6 +136,7 @@ pub fn decode_any(bytes: &[u8]) -> Result<AnyMessage, DecodeError> {
         Kind::EeEstimate => AnyMessage::EeEstimate(decode(bytes)?),
         Kind::AllocationRequest => AnyMessage::AllocationRequest(decode(bytes)?),
         Kind::AllocationResult => AnyMessage::AllocationResult(decode(bytes)?),
+        Kind::SimTruth => AnyMessage::SimTruth(decode(bytes)?),
     })
 }
 
@@ -344,6 +346,8 @@ pub enum JointState {
     Fault = 3,
     /// The agent is shutting down; torque is off.
     Stopped = 4,
+    /// (Estimator status) the joint's samples stopped; what depends on it is withheld.
+    Stale = 5,
 }
 
 impl JointState {
@@ -354,6 +358,7 @@ impl JointState {
             2 => JointState::SafeHold,
             3 => JointState::Fault,
             4 => JointState::Stopped,
+            5 => JointState::Stale,
             _ => return None,
         })
     }
@@ -779,6 +784,59 @@ impl Message for AllocationResult {
             k_joint_nm_per_rad: k,
             pivot_m: d,
             error: r.str("error")?,
+        })
+    }
+}
+
+/// What the simulator knows and no sensor reads: published by simulated joint agents only,
+/// so that tests and summaries can score estimates against the truth.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct SimTruth {
+    pub joint: u16,
+    /// Sequence number and acquisition time of the sample this truth belongs to.
+    pub seq: u64,
+    pub t_acq_ns: u64,
+    /// True (unquantised, unbiased) deflection [rad].
+    pub deflection_rad: f64,
+    /// True joint torque [N·m].
+    pub torque_nm: f64,
+    /// True link angle [rad].
+    pub link_rad: f64,
+}
+
+impl Message for SimTruth {
+    const KIND: Kind = Kind::SimTruth;
+
+    fn validate(&self) -> Result<(), ValidationError> {
+        let c = Check("sim_truth");
+        c.time("t_acq_ns", self.t_acq_ns)?;
+        c.within(
+            "deflection_rad",
+            self.deflection_rad,
+            -std::f64::consts::PI,
+            std::f64::consts::PI,
+        )?;
+        c.within("torque_nm", self.torque_nm, -MAX_TORQUE_NM, MAX_TORQUE_NM)?;
+        c.within("link_rad", self.link_rad, -1e6, 1e6)
+    }
+
+    fn write_body(&self, w: &mut Writer) {
+        w.u16(self.joint);
+        w.u64(self.seq);
+        w.u64(self.t_acq_ns);
+        w.f64(self.deflection_rad);
+        w.f64(self.torque_nm);
+        w.f64(self.link_rad);
+    }
+
+    fn read_body(r: &mut Reader<'_>) -> Result<Self, DecodeError> {
+        Ok(Self {
+            joint: r.u16("joint")?,
+            seq: r.u64("seq")?,
+            t_acq_ns: r.u64("t_acq_ns")?,
+            deflection_rad: r.f64("deflection_rad")?,
+            torque_nm: r.f64("torque_nm")?,
+            link_rad: r.f64("link_rad")?,
         })
     }
 }

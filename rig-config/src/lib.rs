@@ -20,6 +20,7 @@ use rig_model::hysteresis::RestoringCurve;
 use rig_model::lever::LeverVsa;
 use rig_model::observer::EkfConfig;
 use rig_model::planar::{Elbow, FiveBar, FiveBarGeometry, PlanarRobot, SerialArm};
+pub use validate::check_endpoint;
 
 /// How the joints are arranged.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]

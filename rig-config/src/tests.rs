@@ -46,7 +46,7 @@ fn examples_validate_into_si() {
     };
     assert!((vsa.p - 0.0315).abs() < 1e-15);
     assert!((vsa.alpha_max - 43f64.to_radians()).abs() < 1e-15);
-    assert!((restoring.at(0.018).k - 65.3186).abs() < 1e-9);
+    assert!((restoring.at(0.018).k - 51.7302).abs() < 1e-9);
     assert!((dead_band_rad - 2.0 * std::f64::consts::PI / 16384.0).abs() < 1e-15);
     assert_eq!(cfg.joints[2].limits.k_max, 60.0);
     assert!(cfg.robot().is_some());

@@ -76,14 +76,59 @@ impl RobotEstimator {
         &self.robot
     }
 
+    /// Number of actuated joints.
+    pub fn joints(&self) -> usize {
+        self.joints.len()
+    }
+
+    /// Feeds one joint's sample to its restoring-torque model: τ̂ and k̂ at the pivot.
+    /// Non-finite input leaves the model unchanged (it returns its last estimate).
+    pub fn update_joint(&mut self, j: usize, deflection: f64, pivot: f64) -> Option<(f64, f64)> {
+        let m = self.joints.get_mut(j)?;
+        Some((m.update(deflection, pivot), m.curve().at(pivot).k))
+    }
+
+    /// Combines one aligned set of joint readings and their torques into the end-effector
+    /// estimate: configuration by loop closure from θ1, θ2, then F and K_uu.
+    pub fn combine(
+        &self,
+        r: &JointReadings<'_>,
+        torque: Vec<f64>,
+        stiffness: Vec<f64>,
+    ) -> Result<RobotEstimate, EstimateError> {
+        let n = self.joints.len();
+        for len in [
+            r.motor.len(),
+            r.deflection.len(),
+            r.pivot.len(),
+            torque.len(),
+            stiffness.len(),
+        ] {
+            if len != n {
+                return Err(EstimateError::JointCount {
+                    expected: n,
+                    got: len,
+                });
+            }
+        }
+        let configuration = self
+            .robot
+            .from_independent(r.motor[0] + r.deflection[0], r.motor[1] + r.deflection[1])?;
+        let force = end_effector_force(&configuration.g_u_a, &torque)?;
+        let operational_stiffness = operational_stiffness(&configuration.g_u_a, &stiffness)?;
+        Ok(RobotEstimate {
+            configuration,
+            torque,
+            stiffness,
+            force,
+            operational_stiffness,
+        })
+    }
+
     /// Feeds one aligned sample of every joint. On error no model state changes.
     pub fn update(&mut self, r: &JointReadings<'_>) -> Result<RobotEstimate, EstimateError> {
         let n = self.joints.len();
-        for (len, _) in [
-            (r.motor.len(), "motor"),
-            (r.deflection.len(), "deflection"),
-            (r.pivot.len(), "pivot"),
-        ] {
+        for len in [r.motor.len(), r.deflection.len(), r.pivot.len()] {
             if len != n {
                 return Err(EstimateError::JointCount {
                     expected: n,
@@ -102,24 +147,16 @@ impl RobotEstimator {
                 }
             }
         }
-        let configuration = self
-            .robot
+        // Loop closure first: an unreachable reading must not advance the models.
+        self.robot
             .from_independent(r.motor[0] + r.deflection[0], r.motor[1] + r.deflection[1])?;
-        let torque: Vec<f64> = (0..n)
-            .map(|j| self.joints[j].update(r.deflection[j], r.pivot[j]))
-            .collect();
-        let stiffness: Vec<f64> = (0..n)
-            .map(|j| self.joints[j].curve().at(r.pivot[j]).k)
-            .collect();
-        let force = end_effector_force(&configuration.g_u_a, &torque)?;
-        let operational_stiffness = operational_stiffness(&configuration.g_u_a, &stiffness)?;
-        Ok(RobotEstimate {
-            configuration,
-            torque,
-            stiffness,
-            force,
-            operational_stiffness,
-        })
+        let (torque, stiffness): (Vec<f64>, Vec<f64>) = (0..n)
+            .map(|j| {
+                self.update_joint(j, r.deflection[j], r.pivot[j])
+                    .unwrap_or((0.0, 0.0))
+            })
+            .unzip();
+        self.combine(r, torque, stiffness)
     }
 }
 

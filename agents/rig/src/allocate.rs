@@ -8,12 +8,9 @@
 
 use std::path::PathBuf;
 
-use nalgebra::DVector;
-use rig_config::{JointKind, RigConfig, Topology};
-use rig_model::allocation::{
-    Allocation, AllocationProblem, OperationalRange, OperationalStiffness,
-};
-use rig_model::planar::{Configuration, s_matrix};
+use rig_allocator::plan::{Plan, PlanError, Target, allocate};
+use rig_config::RigConfig;
+use rig_model::allocation::OperationalStiffness;
 use serde_json::{Value, json};
 
 use crate::error::CliError;
@@ -83,20 +80,33 @@ fn parse_k(s: &str) -> Result<OperationalStiffness, String> {
     }
 }
 
-/// Everything `rig allocate` computes, before it is printed.
+/// Everything `rig allocate` prints.
 struct Report {
     cfg: RigConfig,
-    at_m: (f64, f64),
-    configuration: Configuration,
-    problem: AllocationProblem,
-    range: OperationalRange,
-    allocation: Allocation,
-    pivots_m: Vec<Result<f64, String>>,
+    plan: Plan,
 }
 
 pub fn run(args: &Args) -> Result<(), CliError> {
-    let report = compute(args)?;
-    let failure = failure(&report);
+    let cfg = rig_config::load(&args.config)?;
+    let home = cfg.geometry.map(|g| g.home);
+    let at_m = match (args.at, home) {
+        (Some((x, y)), _) => (x * 1e-3, y * 1e-3),
+        (None, Some(h)) => h,
+        (None, None) => (0.0, 0.0),
+    };
+    let target = match (args.k, args.percent) {
+        (Some(k), _) => Target::Stiffness(k),
+        (None, Some(p)) => Target::Percent(p),
+        (None, None) => return Err(CliError::Unsupported("give --k or --percent".into())),
+    };
+    let plan = allocate(&cfg, at_m, target).map_err(|e| match e {
+        PlanError::Unsupported(m) => {
+            CliError::Unsupported(format!("{}: {m}", args.config.display()))
+        }
+        PlanError::Infeasible(m) => CliError::Infeasible(m),
+    })?;
+    let failure = plan.failure(cfg.topology);
+    let report = Report { cfg, plan };
     if args.json {
         println!(
             "{}",
@@ -112,135 +122,31 @@ pub fn run(args: &Args) -> Result<(), CliError> {
     }
 }
 
-fn compute(args: &Args) -> Result<Report, CliError> {
-    let cfg = rig_config::load(&args.config)?;
-    if cfg.topology == Topology::Single {
-        return Err(CliError::Unsupported(format!(
-            "{}: a single-joint rig has no operational space; allocate needs a serial or parallel robot",
-            args.config.display()
-        )));
-    }
-    let (robot, geometry) = match (cfg.robot(), cfg.geometry) {
-        (Some(r), Some(g)) => (r, g),
-        _ => {
-            return Err(CliError::Unsupported(
-                "the config has no robot geometry".into(),
-            ));
-        }
-    };
-    let at_m = args.at.map_or(geometry.home, |(x, y)| (x * 1e-3, y * 1e-3));
-    let configuration = robot.at_position(at_m.0, at_m.1).map_err(|e| {
-        CliError::Infeasible(format!(
-            "pose ({:.1}, {:.1}) mm: {e}",
-            at_m.0 * 1e3,
-            at_m.1 * 1e3
-        ))
-    })?;
-    let k_min = DVector::from_iterator(cfg.joints.len(), cfg.joints.iter().map(|j| j.limits.k_min));
-    let k_max = DVector::from_iterator(cfg.joints.len(), cfg.joints.iter().map(|j| j.limits.k_max));
-    let problem = AllocationProblem::new(s_matrix(&configuration.g_u_a), k_min, k_max)
-        .map_err(|e| CliError::Unsupported(format!("allocation problem: {e}")))?;
-    let range = problem.range();
-    let target = match (args.k, args.percent) {
-        (Some(k), _) => k,
-        (None, Some(p)) => problem
-            .decoupled_target(p)
-            .map_err(|e| CliError::Infeasible(e.to_string()))?,
-        (None, None) => return Err(CliError::Unsupported("give --k or --percent".into())),
-    };
-    check_target_in_range(&problem, target)?;
-    let allocation = problem
-        .solve(target)
-        .map_err(|e| CliError::Infeasible(e.to_string()))?;
-    let pivots_m = cfg
-        .joints
-        .iter()
-        .zip(allocation.k.iter())
-        .map(|(j, &k)| match &j.kind {
-            JointKind::Lever { vsa, .. } => vsa.pivot_for_stiffness(k).map_err(|e| e.to_string()),
-            JointKind::Awas { .. } => Err("an AWAS joint has no pivot".to_string()),
-        })
-        .collect();
-    Ok(Report {
-        cfg,
-        at_m,
-        configuration,
-        problem,
-        range,
-        allocation,
-        pivots_m,
-    })
-}
-
-/// A target component outside what any joint stiffnesses in their bounds can give is refused
-/// before solving (the solver would only return the nearest corner).
-fn check_target_in_range(
-    problem: &AllocationProblem,
-    t: OperationalStiffness,
-) -> Result<(), CliError> {
-    let e = problem.extent();
-    for (name, v, lo, hi) in [
-        ("k_xx", t.xx, e.min.xx, e.max.xx),
-        ("k_xy", t.xy, e.min.xy, e.max.xy),
-        ("k_yy", t.yy, e.min.yy, e.max.yy),
-    ] {
-        let tol = 1e-9 * (hi - lo).abs().max(1.0);
-        if v < lo - tol || v > hi + tol {
-            return Err(CliError::Infeasible(format!(
-                "target {name} = {v:.4} N/m is outside what the joints can give at this pose: [{lo:.4}, {hi:.4}] N/m"
-            )));
-        }
-    }
-    Ok(())
-}
-
-fn failure(r: &Report) -> Option<String> {
-    if !r.allocation.feasible {
-        let a = &r.allocation;
-        return Some(format!(
-            "the target cannot be met exactly at this pose: best achievable (k_xx, k_xy, k_yy) = ({:.4}, {:.4}, {:.4}) N/m, residual {:.4} N/m{}",
-            a.achieved.xx,
-            a.achieved.xy,
-            a.achieved.yy,
-            a.residual,
-            if r.cfg.topology == Topology::Serial {
-                " (a serial arm has 2 joint stiffnesses for 3 targets)"
-            } else {
-                ""
-            }
-        ));
-    }
-    r.pivots_m
-        .iter()
-        .zip(&r.cfg.joints)
-        .find_map(|(p, j)| p.as_ref().err().map(|e| format!("joint {}: {e}", j.name)))
-}
-
 fn triple(k: OperationalStiffness) -> Value {
     json!({"xx": k.xx, "xy": k.xy, "yy": k.yy})
 }
 
 fn to_json(r: &Report, error: Option<&str>) -> Value {
-    let a = &r.allocation;
+    let a = &r.plan.allocation;
     let g = r
         .cfg
         .geometry
         .unwrap_or_else(|| unreachable!("checked in compute"));
     let s: Vec<Vec<f64>> = (0..3)
-        .map(|i| r.problem.s.row(i).iter().copied().collect())
+        .map(|i| r.plan.problem.s.row(i).iter().copied().collect())
         .collect();
     json!({
         "rig": r.cfg.name,
         "topology": r.cfg.topology.name(),
-        "pose_m": {"x": r.at_m.0, "y": r.at_m.1},
-        "joint_angles_rad": r.configuration.theta,
+        "pose_m": {"x": r.plan.at_m.0, "y": r.plan.at_m.1},
+        "joint_angles_rad": r.plan.configuration.theta,
         "geometry_m": {"l1": g.l1, "l2": g.l2, "l3": g.l3, "l4": g.l4, "l5": g.l5, "lb": g.lb},
         "s_matrix": s,
-        "k_bounds_nm_per_rad": {"min": r.problem.k_min.as_slice(), "max": r.problem.k_max.as_slice()},
-        "range_n_per_m": {"min": triple(r.range.min), "max": triple(r.range.max)},
+        "k_bounds_nm_per_rad": {"min": r.plan.problem.k_min.as_slice(), "max": r.plan.problem.k_max.as_slice()},
+        "range_n_per_m": {"min": triple(r.plan.range.min), "max": triple(r.plan.range.max)},
         "target_n_per_m": triple(a.target),
         "k_joint_nm_per_rad": a.k.as_slice(),
-        "pivot_mm": r.pivots_m.iter().map(|p| p.as_ref().ok().map(|d| d * 1e3)).collect::<Vec<_>>(),
+        "pivot_mm": r.plan.pivots_m.iter().map(|p| p.as_ref().ok().map(|d| d * 1e3)).collect::<Vec<_>>(),
         "k_operational_n_per_m": triple(a.achieved),
         "residual": a.residual,
         "feasible": a.feasible,
@@ -252,20 +158,20 @@ fn to_json(r: &Report, error: Option<&str>) -> Value {
 }
 
 fn print_table(r: &Report) {
-    let a = &r.allocation;
+    let a = &r.plan.allocation;
     println!(
         "Allocation for rig \"{}\" ({}, {} VSAs) with the end effector at ({:.1}, {:.1}) mm",
         r.cfg.name,
         r.cfg.topology.name(),
         r.cfg.joints.len(),
-        r.at_m.0 * 1e3,
-        r.at_m.1 * 1e3
+        r.plan.at_m.0 * 1e3,
+        r.plan.at_m.1 * 1e3
     );
     println!();
     println!("                 k_xx [N/m]   k_xy [N/m]   k_yy [N/m]");
     for (label, k) in [
-        ("range min (0 %)", r.range.min),
-        ("range max (100%)", r.range.max),
+        ("range min (0 %)", r.plan.range.min),
+        ("range max (100%)", r.plan.range.max),
         ("target", a.target),
         ("achieved", a.achieved),
     ] {
@@ -288,21 +194,21 @@ fn print_table(r: &Report) {
             1 => " (at max)",
             _ => "",
         };
-        let pivot = match &r.pivots_m[i] {
+        let pivot = match &r.plan.pivots_m[i] {
             Ok(d) => format!("{:.3}", d * 1e3),
             Err(e) => format!("— ({e})"),
         };
         println!(
             "{:<6} {:>7.2}   {:>11.4}   [{:>7.4}, {:>7.3}]   {pivot}{bound}",
             j.name,
-            r.configuration.theta[i].to_degrees(),
+            r.plan.configuration.theta[i].to_degrees(),
             a.k[i],
-            r.problem.k_min[i],
-            r.problem.k_max[i],
+            r.plan.problem.k_min[i],
+            r.plan.problem.k_max[i],
         );
     }
-    if r.configuration.theta.len() > r.cfg.joints.len() {
-        let passive: Vec<String> = r.configuration.theta[r.cfg.joints.len()..]
+    if r.plan.configuration.theta.len() > r.cfg.joints.len() {
+        let passive: Vec<String> = r.plan.configuration.theta[r.cfg.joints.len()..]
             .iter()
             .map(|t| format!("{:.2}", t.to_degrees()))
             .collect();

@@ -1,6 +1,10 @@
 //! `rig` — the VSA rig's command line.
 //!
 //! Where things come from, one hop away:
+//! - `rig up` → [`up`]: every role of a simulated rig over Zenoh — joint agents
+//!   (`rig_joint`), the estimator host (`rig_estimator`: its core turns samples into torques
+//!   and the end-effector force), the allocator host (`rig_allocator`);
+//! - `rig estimator`, `rig allocator` → [`hosts`]: those hosts as processes of their own;
 //! - `rig validate` → [`validate`] → `rig_config::load`;
 //! - `rig allocate` → [`allocate`] → `rig_model::planar` (S matrix at the pose) and
 //!   `rig_model::allocation` (bounded least squares, tie-break) and `rig_model::lever`
@@ -11,9 +15,11 @@
 
 mod allocate;
 mod error;
+mod hosts;
 mod progress;
 mod reproduce;
 mod sim;
+mod up;
 mod validate;
 
 use std::process::ExitCode;
@@ -33,6 +39,14 @@ struct Cli {
 
 #[derive(Debug, Subcommand)]
 enum Command {
+    /// Run the whole simulated rig on this machine: joint agents, estimator and allocator
+    /// over Zenoh on loopback, until Ctrl-C or --duration; then a summary scored against the
+    /// simulated truth.
+    Up(up::Args),
+    /// Run the estimator host: samples in, joint torques, stiffness, end-effector force out.
+    Estimator(hosts::HostArgs),
+    /// Run the allocator host: allocation queries and stiffness goals in, pivot commands out.
+    Allocator(hosts::HostArgs),
     /// Check rig config files; print a summary, or every problem with file, line and field.
     ///
     /// Exit status: 0 when every file is valid, 1 otherwise.
@@ -56,6 +70,9 @@ enum Command {
 fn main() -> ExitCode {
     let cli = Cli::parse();
     let result = match cli.command {
+        Command::Up(a) => up::run(&a),
+        Command::Estimator(a) => hosts::estimator(&a),
+        Command::Allocator(a) => hosts::allocator(&a),
         Command::Validate(a) => validate::run(&a),
         Command::Allocate(a) => allocate::run(&a),
         Command::Sim(a) => sim::run(&a),

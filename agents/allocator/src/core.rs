@@ -1,0 +1,274 @@
+//! The allocator host's core, sans I/O.
+//!
+//! - A request (query) is answered with an allocation and, when it can be applied, pivot
+//!   commands for every joint.
+//! - A continuous goal is kept; when the end-effector estimate moves more than
+//!   `reallocate_m` from the pose of the last allocation, it re-allocates.
+//! - The current pivot goals are re-sent at a steady rate (the joints' watchdogs expect a
+//!   heartbeat; without one they hold where they are).
+
+use rig_config::RigConfig;
+use rig_model::allocation::OperationalStiffness;
+use rig_protocol::{
+    AllocationRequest, AllocationResult, AllocationTarget, EeEstimate, JointCommand,
+    StiffnessTriple,
+};
+
+use crate::plan::{PlanError, Target, allocate};
+
+/// The allocator host's core.
+#[derive(Debug, Clone)]
+pub struct AllocatorCore {
+    cfg: RigConfig,
+    goal: Option<Target>,
+    pivots: Option<Vec<f64>>,
+    last_pose: Option<(f64, f64)>,
+    pose: (f64, f64),
+    cmd_seq: u64,
+    /// Re-allocate when the pose moves more than this [m].
+    pub reallocate_m: f64,
+}
+
+fn triple(k: OperationalStiffness) -> StiffnessTriple {
+    StiffnessTriple {
+        xx: k.xx,
+        xy: k.xy,
+        yy: k.yy,
+    }
+}
+
+fn target_of(t: AllocationTarget) -> Target {
+    match t {
+        AllocationTarget::Stiffness(k) => Target::Stiffness(OperationalStiffness {
+            xx: k.xx,
+            xy: k.xy,
+            yy: k.yy,
+        }),
+        AllocationTarget::Percent(p) => Target::Percent(p),
+    }
+}
+
+impl AllocatorCore {
+    pub fn new(cfg: RigConfig) -> Self {
+        let pose = cfg.geometry.map_or((0.0, 0.0), |g| g.home);
+        Self {
+            cfg,
+            goal: None,
+            pivots: None,
+            last_pose: None,
+            pose,
+            cmd_seq: 0,
+            reallocate_m: 0.002,
+        }
+    }
+
+    fn commands(&mut self, now_ns: u64) -> Vec<JointCommand> {
+        let Some(pivots) = self.pivots.clone() else {
+            return Vec::new();
+        };
+        pivots
+            .iter()
+            .enumerate()
+            .map(|(j, &d)| {
+                self.cmd_seq += 1;
+                JointCommand {
+                    joint: j as u16,
+                    seq: self.cmd_seq,
+                    t_ns: now_ns.max(1),
+                    motor_goal_rad: None,
+                    pivot_goal_m: Some(d),
+                    stiffness_motor_goal_rad: None,
+                    torque_enable: true,
+                }
+            })
+            .collect()
+    }
+
+    /// Allocates for `target` at `at_m`; applies it (commands) only when it can be met.
+    fn apply(
+        &mut self,
+        id: u64,
+        at_m: (f64, f64),
+        target: Target,
+        now_ns: u64,
+    ) -> (AllocationResult, Vec<JointCommand>) {
+        let zero = StiffnessTriple {
+            xx: 0.0,
+            xy: 0.0,
+            yy: 0.0,
+        };
+        match allocate(&self.cfg, at_m, target) {
+            Ok(plan) => {
+                let failure = plan.failure(self.cfg.topology);
+                let a = &plan.allocation;
+                let pivots = plan.pivots();
+                let result = AllocationResult {
+                    id,
+                    feasible: failure.is_none(),
+                    residual: a.residual,
+                    target: triple(a.target),
+                    achieved: triple(a.achieved),
+                    k_joint_nm_per_rad: a.k.iter().copied().collect(),
+                    pivot_m: pivots.clone().unwrap_or_else(|| vec![0.0; a.k.len()]),
+                    error: failure.clone().unwrap_or_default(),
+                };
+                if failure.is_none() {
+                    self.pivots = pivots;
+                    self.last_pose = Some(at_m);
+                    return (result, self.commands(now_ns));
+                }
+                (result, Vec::new())
+            }
+            Err(PlanError::Unsupported(e) | PlanError::Infeasible(e)) => (
+                AllocationResult {
+                    id,
+                    feasible: false,
+                    residual: 0.0,
+                    target: zero,
+                    achieved: zero,
+                    k_joint_nm_per_rad: vec![],
+                    pivot_m: vec![],
+                    error: e.chars().take(1000).collect(),
+                },
+                Vec::new(),
+            ),
+        }
+    }
+
+    /// A one-off request (the queryable).
+    pub fn on_request(
+        &mut self,
+        req: &AllocationRequest,
+        now_ns: u64,
+    ) -> (AllocationResult, Vec<JointCommand>) {
+        self.apply(req.id, (req.x_m, req.y_m), target_of(req.target), now_ns)
+    }
+
+    /// A continuous goal: kept and re-applied as the pose changes. The request's position is
+    /// where to start; later poses come from the end-effector estimates.
+    pub fn on_goal(
+        &mut self,
+        req: &AllocationRequest,
+        now_ns: u64,
+    ) -> (AllocationResult, Vec<JointCommand>) {
+        self.goal = Some(target_of(req.target));
+        self.pose = (req.x_m, req.y_m);
+        self.apply(req.id, self.pose, target_of(req.target), now_ns)
+    }
+
+    /// An end-effector estimate: re-allocate if a goal is set and the pose moved enough.
+    pub fn on_ee(
+        &mut self,
+        ee: &EeEstimate,
+        now_ns: u64,
+    ) -> Option<(AllocationResult, Vec<JointCommand>)> {
+        self.pose = (ee.x_m, ee.y_m);
+        let goal = self.goal?;
+        let moved = self
+            .last_pose
+            .is_none_or(|(x, y)| (x - ee.x_m).hypot(y - ee.y_m) > self.reallocate_m);
+        moved.then(|| self.apply(0, self.pose, goal, now_ns))
+    }
+
+    /// The current pivot goals again (heartbeat for the joints' watchdogs).
+    pub fn heartbeat(&mut self, now_ns: u64) -> Vec<JointCommand> {
+        self.commands(now_ns)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn core() -> AllocatorCore {
+        AllocatorCore::new(rig_config::examples::load("parallel").unwrap())
+    }
+
+    #[test]
+    fn a_request_becomes_pivot_commands_within_travel() {
+        let mut c = core();
+        let req = AllocationRequest {
+            id: 9,
+            x_m: 0.075,
+            y_m: 0.2,
+            target: AllocationTarget::Percent(25.0),
+        };
+        let (r, cmds) = c.on_request(&req, 5);
+        assert!(r.feasible, "{}", r.error);
+        assert_eq!(r.id, 9);
+        assert!(r.achieved.xy.abs() < 1e-6);
+        assert_eq!(cmds.len(), 4);
+        for (j, cmd) in cmds.iter().enumerate() {
+            assert_eq!(cmd.joint as usize, j);
+            let d = cmd.pivot_goal_m.unwrap();
+            assert!((0.0..=0.018).contains(&d));
+            assert_eq!(d, r.pivot_m[j]);
+        }
+        assert_eq!(c.heartbeat(6).len(), 4);
+    }
+
+    #[test]
+    fn infeasible_requests_answer_why_and_command_nothing() {
+        let mut c = core();
+        let far = AllocationRequest {
+            id: 1,
+            x_m: 0.075,
+            y_m: 0.9,
+            target: AllocationTarget::Percent(25.0),
+        };
+        let (r, cmds) = c.on_request(&far, 1);
+        assert!(
+            !r.feasible && r.error.contains("out of reach") && cmds.is_empty(),
+            "{}",
+            r.error
+        );
+        let big = AllocationRequest {
+            id: 2,
+            x_m: 0.075,
+            y_m: 0.2,
+            target: AllocationTarget::Stiffness(StiffnessTriple {
+                xx: 1e6,
+                xy: 0.0,
+                yy: 100.0,
+            }),
+        };
+        let (r, cmds) = c.on_request(&big, 1);
+        assert!(!r.feasible && r.error.contains("k_xx") && cmds.is_empty());
+        assert!(
+            c.heartbeat(2).is_empty(),
+            "nothing applied, nothing to repeat"
+        );
+    }
+
+    #[test]
+    fn a_goal_follows_the_pose() {
+        let mut c = core();
+        let goal = AllocationRequest {
+            id: 3,
+            x_m: 0.075,
+            y_m: 0.2,
+            target: AllocationTarget::Percent(25.0),
+        };
+        let (_, first) = c.on_goal(&goal, 1);
+        let ee = |x: f64, y: f64| EeEstimate {
+            seq: 1,
+            t_ns: 2,
+            stale_mask: 0,
+            x_m: x,
+            y_m: y,
+            phi_rad: 0.0,
+            force_n: None,
+            stiffness_n_per_m: None,
+        };
+        assert!(
+            c.on_ee(&ee(0.0755, 0.2), 2).is_none(),
+            "0.5 mm is below the threshold"
+        );
+        let (r, cmds) = c.on_ee(&ee(0.085, 0.2), 3).unwrap();
+        assert!(r.feasible);
+        assert_ne!(
+            cmds[0].pivot_goal_m, first[0].pivot_goal_m,
+            "new pose, new pivots"
+        );
+    }
+}

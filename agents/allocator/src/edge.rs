@@ -1,0 +1,149 @@
+//! The allocator host's Zenoh edge: a queryable on `rig/<rig>/allocate`, a subscriber for
+//! continuous goals on `rig/<rig>/stiffness/goal` and for `rig/<rig>/estimate/ee`; pivot
+//! commands out on `rig/<rig>/joint/<j>/command`, re-sent at 10 Hz as the joints' heartbeat.
+
+use std::time::Duration;
+
+use rig_config::RigConfig;
+use rig_protocol::{AllocationRequest, EeEstimate, JointCommand, Keys, decode, encode};
+use rig_runtime::{NetOverrides, now_ns, open};
+use thiserror::Error;
+
+use crate::core::AllocatorCore;
+
+#[derive(Debug, Error)]
+pub enum AllocatorError {
+    #[error(transparent)]
+    Runtime(#[from] rig_runtime::RuntimeError),
+    #[error("zenoh: {0}")]
+    Zenoh(String),
+    #[error("{0}")]
+    Key(#[from] rig_protocol::KeyError),
+}
+
+fn z<E: std::fmt::Display>(e: E) -> AllocatorError {
+    AllocatorError::Zenoh(e.to_string())
+}
+
+#[derive(Debug, Clone)]
+pub struct AllocatorOptions {
+    pub cfg: RigConfig,
+    pub net: NetOverrides,
+    pub duration: Option<Duration>,
+}
+
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+pub struct AllocatorReport {
+    pub requests: u64,
+    pub goals: u64,
+    pub commands: u64,
+    pub malformed: u64,
+}
+
+/// Runs the host until `shutdown` resolves or the duration ends.
+pub async fn run(
+    opts: AllocatorOptions,
+    shutdown: impl std::future::Future<Output = ()>,
+) -> Result<AllocatorReport, AllocatorError> {
+    let cfg = &opts.cfg;
+    let keys = Keys::new(&cfg.name)?;
+    let mut core = AllocatorCore::new(cfg.clone());
+    let session = open(&cfg.zenoh, &opts.net).await?;
+    let queries = session
+        .declare_queryable(keys.allocate())
+        .await
+        .map_err(z)?;
+    let goals = session
+        .declare_subscriber(keys.stiffness_goal())
+        .await
+        .map_err(z)?;
+    let ees = session
+        .declare_subscriber(keys.ee_estimate())
+        .await
+        .map_err(z)?;
+    let mut cmd_pubs = Vec::new();
+    for j in &cfg.joints {
+        cmd_pubs.push(
+            session
+                .declare_publisher(keys.joint_command(&j.name)?)
+                .await
+                .map_err(z)?,
+        );
+    }
+    let _token = session
+        .liveliness()
+        .declare_token(keys.alive("allocator", "0")?)
+        .await
+        .map_err(z)?;
+    let mut report = AllocatorReport::default();
+    let mut heartbeat = tokio::time::interval(Duration::from_millis(100));
+    heartbeat.set_missed_tick_behavior(tokio::time::MissedTickBehavior::Skip);
+    let deadline = opts.duration.map(|d| tokio::time::Instant::now() + d);
+    tokio::pin!(shutdown);
+    loop {
+        let cmds: Vec<JointCommand> = tokio::select! {
+            _ = &mut shutdown => break,
+            _ = heartbeat.tick() => {
+                if deadline.is_some_and(|d| tokio::time::Instant::now() >= d) {
+                    break;
+                }
+                core.heartbeat(now_ns())
+            }
+            q = queries.recv_async() => {
+                let Ok(q) = q else { break };
+                let bytes = q.payload().map(|p| p.to_bytes().into_owned()).unwrap_or_default();
+                match decode::<AllocationRequest>(&bytes) {
+                    Ok(req) => {
+                        report.requests += 1;
+                        let (result, cmds) = core.on_request(&req, now_ns());
+                        if let Ok(bytes) = encode(&result) {
+                            q.reply(keys.allocate(), bytes).await.map_err(z)?;
+                        }
+                        cmds
+                    }
+                    Err(e) => {
+                        report.malformed += 1;
+                        q.reply_err(format!("malformed allocation request: {e}")).await.map_err(z)?;
+                        Vec::new()
+                    }
+                }
+            }
+            g = goals.recv_async() => {
+                let Ok(g) = g else { break };
+                match decode::<AllocationRequest>(&g.payload().to_bytes()) {
+                    Ok(req) => {
+                        report.goals += 1;
+                        let (result, cmds) = core.on_goal(&req, now_ns());
+                        if !result.feasible {
+                            eprintln!("rig allocator: goal {} not applied: {}", req.id, result.error);
+                        }
+                        cmds
+                    }
+                    Err(e) => {
+                        report.malformed += 1;
+                        eprintln!("rig allocator: dropped a malformed goal: {e}");
+                        Vec::new()
+                    }
+                }
+            }
+            e = ees.recv_async() => {
+                let Ok(e) = e else { break };
+                match decode::<EeEstimate>(&e.payload().to_bytes()) {
+                    Ok(ee) => core.on_ee(&ee, now_ns()).map(|(_, c)| c).unwrap_or_default(),
+                    Err(_) => {
+                        report.malformed += 1;
+                        Vec::new()
+                    }
+                }
+            }
+        };
+        for c in cmds {
+            if let (Some(p), Ok(bytes)) = (cmd_pubs.get(c.joint as usize), encode(&c)) {
+                p.put(bytes).await.map_err(z)?;
+                report.commands += 1;
+            }
+        }
+    }
+    session.close().await.map_err(z)?;
+    Ok(report)
+}

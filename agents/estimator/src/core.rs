@@ -1,0 +1,506 @@
+//! The estimator host's core, sans I/O: joint samples in, estimates and status out.
+//!
+//! - **Alignment by time**: samples are grouped by acquisition tick, round(t_acq / Ts); a tick
+//!   is processed when every joint has reported it, in tick order. A tick some joints never
+//!   report is processed without them once `max_lag` newer ticks have been seen (their models
+//!   skip it; what needs every joint — the end-effector estimate — is withheld and counted).
+//! - **Staleness**: a joint whose samples stop for `stale_after` is marked stale with a status
+//!   saying why; nothing that depends on it is published until it returns, which is announced.
+//! - **Per joint**: paper B's restoring-torque model for a lever VSA; paper A's decoupled
+//!   impedance observer for an AWAS joint with a torque sensor.
+//! - **Robot**: loop closure, force and operational stiffness ([`RobotEstimator`], the code
+//!   `rig reproduce` uses).
+
+use std::collections::BTreeMap;
+
+use rig_config::{JointKind, RigConfig, Topology};
+use rig_model::estimator::{JointReadings, RobotEstimator};
+use rig_model::hysteresis::RestoringTorqueModel;
+use rig_model::observer::{DecoupledObserver, ImpedanceSample};
+use rig_protocol::{
+    EeEstimate, JointEstimate, JointSample, JointState, JointStatus, StiffnessTriple,
+};
+use thiserror::Error;
+
+/// Errors building the core.
+#[derive(Debug, Error)]
+pub enum CoreError {
+    #[error("estimator: {0}")]
+    Setup(String),
+}
+
+/// What the core wants published.
+#[derive(Debug, Clone, PartialEq)]
+pub enum Output {
+    Joint(JointEstimate),
+    Ee(EeEstimate),
+    Status(JointStatus),
+}
+
+/// Counters for summaries and tests.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+pub struct CoreStats {
+    pub samples: u64,
+    pub ticks_processed: u64,
+    pub ticks_incomplete: u64,
+    pub late_dropped: u64,
+    pub joint_estimates: u64,
+    pub ee_estimates: u64,
+    pub ee_withheld: u64,
+    pub errors: u64,
+}
+
+enum PerJoint {
+    /// Lever joints (their models live in the robot estimator for a robot).
+    Robot(Box<RobotEstimator>),
+    Lever(Box<RestoringTorqueModel>),
+    Awas(Box<DecoupledObserver>),
+}
+
+/// Timing parameters.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct CoreTiming {
+    /// Sample period [ns].
+    pub period_ns: u64,
+    /// A joint is stale after this long without a sample [ns].
+    pub stale_after_ns: u64,
+    /// Ticks to wait for a missing joint before processing without it.
+    pub max_lag: u64,
+}
+
+impl CoreTiming {
+    /// 1/rate periods, stale after 200 ms, wait up to 20 ticks.
+    pub fn for_rate(rate_hz: f64) -> Self {
+        Self {
+            period_ns: (1e9 / rate_hz).round() as u64,
+            stale_after_ns: 200_000_000,
+            max_lag: 20,
+        }
+    }
+}
+
+/// The estimator host's core.
+pub struct EstimatorCore {
+    names: Vec<String>,
+    timing: CoreTiming,
+    per: PerJoint,
+    pending: BTreeMap<u64, Vec<Option<JointSample>>>,
+    newest_tick: Option<u64>,
+    last_processed: Option<u64>,
+    last_seen_ns: Vec<Option<u64>>,
+    started_ns: Option<u64>,
+    stale: Vec<bool>,
+    status_seq: u64,
+    ee_seq: u64,
+    pub stats: CoreStats,
+}
+
+impl std::fmt::Debug for EstimatorCore {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("EstimatorCore")
+            .field("joints", &self.names)
+            .field("stats", &self.stats)
+            .finish_non_exhaustive()
+    }
+}
+
+impl EstimatorCore {
+    /// A core for the rig in `cfg`.
+    pub fn new(cfg: &RigConfig, timing: CoreTiming) -> Result<Self, CoreError> {
+        let n = cfg.joints.len();
+        let lever_model = |k: &JointKind| match k {
+            JointKind::Lever {
+                restoring,
+                dead_band_rad,
+                ..
+            } => Ok(RestoringTorqueModel::new(
+                (**restoring).clone(),
+                *dead_band_rad,
+            )),
+            JointKind::Awas { .. } => Err(CoreError::Setup(
+                "robots are built from lever joints".into(),
+            )),
+        };
+        let per = match cfg.topology {
+            Topology::Serial | Topology::Parallel => {
+                let robot = cfg
+                    .robot()
+                    .ok_or_else(|| CoreError::Setup("no robot geometry".into()))?;
+                let models = cfg
+                    .joints
+                    .iter()
+                    .map(|j| lever_model(&j.kind))
+                    .collect::<Result<Vec<_>, _>>()?;
+                PerJoint::Robot(Box::new(
+                    RobotEstimator::new(robot, models)
+                        .map_err(|e| CoreError::Setup(e.to_string()))?,
+                ))
+            }
+            Topology::Single => match &cfg.joints[0].kind {
+                JointKind::Lever { .. } => {
+                    PerJoint::Lever(Box::new(lever_model(&cfg.joints[0].kind)?))
+                }
+                JointKind::Awas { dynamics, .. } => {
+                    let ts = timing.period_ns as f64 * 1e-9;
+                    let o = cfg.observer;
+                    let motor = Some(rig_model::observer::MotorParams {
+                        b1: dynamics.b1,
+                        d1: dynamics.d1,
+                    });
+                    PerJoint::Awas(Box::new(
+                        DecoupledObserver::new(o.ekf(ts), o.alpha, o.k0, motor)
+                            .map_err(|e| CoreError::Setup(e.to_string()))?,
+                    ))
+                }
+            },
+        };
+        Ok(Self {
+            names: cfg.joints.iter().map(|j| j.name.clone()).collect(),
+            timing,
+            per,
+            pending: BTreeMap::new(),
+            newest_tick: None,
+            last_processed: None,
+            last_seen_ns: vec![None; n],
+            started_ns: None,
+            stale: vec![false; n],
+            status_seq: 0,
+            ee_seq: 0,
+            stats: CoreStats::default(),
+        })
+    }
+
+    /// Joint names, in index order.
+    pub fn names(&self) -> &[String] {
+        &self.names
+    }
+
+    /// Which joints are stale now.
+    pub fn stale(&self) -> &[bool] {
+        &self.stale
+    }
+
+    fn status(&mut self, joint: usize, state: JointState, text: String, now_ns: u64) -> Output {
+        self.status_seq += 1;
+        Output::Status(JointStatus {
+            joint: joint as u16,
+            seq: self.status_seq,
+            t_ns: now_ns.max(1),
+            state,
+            text,
+        })
+    }
+
+    /// Feeds one (validated) sample that arrived at local time `now_ns`.
+    pub fn on_sample(&mut self, s: JointSample, now_ns: u64) -> Vec<Output> {
+        let mut out = Vec::new();
+        let j = s.joint as usize;
+        if j >= self.names.len() {
+            self.stats.errors += 1;
+            return out;
+        }
+        self.started_ns.get_or_insert(now_ns);
+        self.stats.samples += 1;
+        self.last_seen_ns[j] = Some(now_ns);
+        if self.stale[j] {
+            self.stale[j] = false;
+            let name = self.names[j].clone();
+            out.push(self.status(
+                j,
+                JointState::Ok,
+                format!("joint {name}: samples resumed"),
+                now_ns,
+            ));
+        }
+        let tick = (s.t_acq_ns + self.timing.period_ns / 2) / self.timing.period_ns;
+        if self.last_processed.is_some_and(|p| tick <= p) {
+            self.stats.late_dropped += 1;
+            return out;
+        }
+        let n = self.names.len();
+        self.pending.entry(tick).or_insert_with(|| vec![None; n])[j] = Some(s);
+        self.newest_tick = Some(self.newest_tick.map_or(tick, |t| t.max(tick)));
+        self.drain(&mut out);
+        out
+    }
+
+    /// Periodic check at local time `now_ns`: staleness, and ticks waiting on stale joints.
+    pub fn on_tick(&mut self, now_ns: u64) -> Vec<Output> {
+        let mut out = Vec::new();
+        let start = *self.started_ns.get_or_insert(now_ns);
+        for j in 0..self.names.len() {
+            let since = self.last_seen_ns[j].unwrap_or(start);
+            let silent = now_ns.saturating_sub(since);
+            if !self.stale[j] && silent > self.timing.stale_after_ns {
+                self.stale[j] = true;
+                let (name, ms, limit) = (
+                    self.names[j].clone(),
+                    silent as f64 * 1e-6,
+                    self.timing.stale_after_ns as f64 * 1e-6,
+                );
+                let why = if self.last_seen_ns[j].is_some() {
+                    "no sample"
+                } else {
+                    "no sample yet"
+                };
+                out.push(self.status(
+                    j,
+                    JointState::Stale,
+                    format!("joint {name}: {why} for {ms:.0} ms (limit {limit:.0} ms); end-effector estimates withheld"),
+                    now_ns,
+                ));
+            }
+        }
+        self.drain(&mut out);
+        out
+    }
+
+    fn drain(&mut self, out: &mut Vec<Output>) {
+        let Some(newest) = self.newest_tick else {
+            return;
+        };
+        while let Some((&tick, slots)) = self.pending.iter().next() {
+            let complete = slots
+                .iter()
+                .enumerate()
+                .all(|(j, s)| s.is_some() || self.stale[j]);
+            let waited = newest.saturating_sub(tick) >= self.timing.max_lag;
+            if !(complete || waited) {
+                break;
+            }
+            let slots = self.pending.remove(&tick).unwrap_or_default();
+            self.last_processed = Some(tick);
+            self.process(tick, &slots, out);
+        }
+    }
+
+    fn process(&mut self, tick: u64, slots: &[Option<JointSample>], out: &mut Vec<Output>) {
+        self.stats.ticks_processed += 1;
+        let all = slots.iter().all(Option::is_some);
+        if !all {
+            self.stats.ticks_incomplete += 1;
+        }
+        let t_ns = tick * self.timing.period_ns;
+        let mut joint_out = Vec::new();
+        match &mut self.per {
+            PerJoint::Robot(est) => {
+                let mut torque = vec![0.0; slots.len()];
+                let mut stiffness = vec![0.0; slots.len()];
+                for (j, s) in slots.iter().enumerate() {
+                    let Some(s) = s else { continue };
+                    let pivot = s.pivot_m.unwrap_or(0.0);
+                    let Some((tau, k)) = est.update_joint(j, s.deflection_rad, pivot) else {
+                        continue;
+                    };
+                    torque[j] = tau;
+                    stiffness[j] = k;
+                    joint_out.push(JointEstimate {
+                        joint: j as u16,
+                        seq: s.seq,
+                        t_acq_ns: s.t_acq_ns,
+                        torque_nm: tau,
+                        stiffness_nm_per_rad: Some(k),
+                        inertia_kg_m2: None,
+                        inertia_var: None,
+                        damping_nms_per_rad: None,
+                        damping_var: None,
+                        residual_nm: s.torque_nm.map(|m| m - tau),
+                    });
+                }
+                if all {
+                    let motor: Vec<f64> = slots.iter().flatten().map(|s| s.motor_rad).collect();
+                    let defl: Vec<f64> = slots.iter().flatten().map(|s| s.deflection_rad).collect();
+                    let pivot: Vec<f64> = slots
+                        .iter()
+                        .flatten()
+                        .map(|s| s.pivot_m.unwrap_or(0.0))
+                        .collect();
+                    match est.combine(
+                        &JointReadings {
+                            motor: &motor,
+                            deflection: &defl,
+                            pivot: &pivot,
+                        },
+                        torque,
+                        stiffness,
+                    ) {
+                        Ok(e) => {
+                            self.ee_seq += 1;
+                            let k = e.operational_stiffness;
+                            out.push(Output::Ee(EeEstimate {
+                                seq: self.ee_seq,
+                                t_ns,
+                                stale_mask: 0,
+                                x_m: e.configuration.pose.x,
+                                y_m: e.configuration.pose.y,
+                                phi_rad: e.configuration.pose.phi,
+                                force_n: Some((e.force[0], e.force[1])),
+                                stiffness_n_per_m: Some(StiffnessTriple {
+                                    xx: k[(0, 0)],
+                                    xy: k[(0, 1)],
+                                    yy: k[(1, 1)],
+                                }),
+                            }));
+                            self.stats.ee_estimates += 1;
+                        }
+                        Err(_) => self.stats.errors += 1,
+                    }
+                } else {
+                    self.stats.ee_withheld += 1;
+                }
+            }
+            PerJoint::Lever(m) => {
+                if let Some(s) = &slots[0] {
+                    let pivot = s.pivot_m.unwrap_or(0.0);
+                    let tau = m.update(s.deflection_rad, pivot);
+                    joint_out.push(JointEstimate {
+                        joint: 0,
+                        seq: s.seq,
+                        t_acq_ns: s.t_acq_ns,
+                        torque_nm: tau,
+                        stiffness_nm_per_rad: Some(m.curve().at(pivot).k),
+                        inertia_kg_m2: None,
+                        inertia_var: None,
+                        damping_nms_per_rad: None,
+                        damping_var: None,
+                        residual_nm: s.torque_nm.map(|m| m - tau),
+                    });
+                }
+            }
+            PerJoint::Awas(obs) => {
+                if let Some(s) = &slots[0] {
+                    let sample = ImpedanceSample {
+                        q: s.motor_rad + s.deflection_rad,
+                        theta1: s.motor_rad,
+                        tau_e: s.torque_nm,
+                        tau1: s.motor_torque_nm,
+                        tau_ext: 0.0,
+                    };
+                    match obs.step(&sample) {
+                        Ok(e) => {
+                            let link = e.link;
+                            let finite = |v: Option<f64>| v.filter(|x| x.is_finite());
+                            joint_out.push(JointEstimate {
+                                joint: 0,
+                                seq: s.seq,
+                                t_acq_ns: s.t_acq_ns,
+                                torque_nm: if e.tau_e.is_finite() { e.tau_e } else { 0.0 },
+                                stiffness_nm_per_rad: finite(Some(e.stiffness)),
+                                inertia_kg_m2: finite(link.and_then(|l| l.inertia))
+                                    .filter(|v| *v >= 0.0),
+                                inertia_var: finite(link.and_then(|l| l.inertia_var)),
+                                damping_nms_per_rad: finite(link.and_then(|l| l.damping)),
+                                damping_var: finite(link.and_then(|l| l.damping_var)),
+                                residual_nm: None,
+                            });
+                        }
+                        Err(_) => self.stats.errors += 1,
+                    }
+                }
+            }
+        }
+        self.stats.joint_estimates += joint_out.len() as u64;
+        out.extend(joint_out.into_iter().map(Output::Joint));
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn cfg() -> RigConfig {
+        rig_config::examples::load("parallel").unwrap()
+    }
+
+    fn sample(j: u16, tick: u64, defl: f64) -> JointSample {
+        let c = cfg();
+        let robot = c.robot().unwrap();
+        let home = robot.at_position(0.075, 0.2).unwrap();
+        JointSample {
+            joint: j,
+            seq: tick,
+            t_acq_ns: tick * 1_000_000,
+            motor_rad: home.theta[j as usize],
+            deflection_rad: defl,
+            pivot_m: Some(0.009),
+            torque_nm: None,
+            motor_torque_nm: None,
+            stiffness_motor_rad: None,
+        }
+    }
+
+    fn ee(out: &[Output]) -> usize {
+        out.iter().filter(|o| matches!(o, Output::Ee(_))).count()
+    }
+
+    #[test]
+    fn aligns_by_tick_not_arrival_order() {
+        let mut core = EstimatorCore::new(&cfg(), CoreTiming::for_rate(1000.0)).unwrap();
+        let mut out = Vec::new();
+        // Joint 3 of tick 1 arrives before the others; tick 1 completes only with all four.
+        out.extend(core.on_sample(sample(3, 1, 0.0), 10));
+        for j in 0..3 {
+            assert_eq!(ee(&out), 0);
+            out.extend(core.on_sample(sample(j, 1, 0.0), 11));
+        }
+        assert_eq!(ee(&out), 1);
+        assert_eq!(
+            out.iter().filter(|o| matches!(o, Output::Joint(_))).count(),
+            4
+        );
+        // A sample for an already processed tick is late and dropped.
+        core.on_sample(sample(0, 1, 0.0), 12);
+        assert_eq!(core.stats.late_dropped, 1);
+    }
+
+    #[test]
+    fn a_silent_joint_goes_stale_withholds_ee_and_recovers() {
+        let t = CoreTiming::for_rate(1000.0);
+        let mut core = EstimatorCore::new(&cfg(), t).unwrap();
+        let ms = 1_000_000u64;
+        let mut ee_count = 0;
+        let mut statuses = Vec::new();
+        for tick in 1..=1000u64 {
+            let now = tick * ms;
+            for j in 0..4u16 {
+                // Joint 2 is silent between 300 ms and 700 ms.
+                if j == 2 && (300..700).contains(&tick) {
+                    continue;
+                }
+                for o in core.on_sample(sample(j, tick, 0.0), now) {
+                    ee_count += usize::from(matches!(o, Output::Ee(_)));
+                    if let Output::Status(s) = o {
+                        statuses.push((tick, s));
+                    }
+                }
+            }
+            for o in core.on_tick(now) {
+                ee_count += usize::from(matches!(o, Output::Ee(_)));
+                if let Output::Status(s) = o {
+                    statuses.push((tick, s));
+                }
+            }
+        }
+        let stale: Vec<_> = statuses
+            .iter()
+            .filter(|(_, s)| s.state == JointState::Stale)
+            .collect();
+        assert_eq!(stale.len(), 1, "{statuses:?}");
+        assert_eq!(stale[0].1.joint, 2);
+        assert!(
+            (500..=502).contains(&stale[0].0),
+            "stale after 200 ms of silence: tick {}",
+            stale[0].0
+        );
+        assert!(stale[0].1.text.contains("withheld"));
+        let ok: Vec<_> = statuses
+            .iter()
+            .filter(|(_, s)| s.state == JointState::Ok)
+            .collect();
+        assert_eq!(ok.len(), 1);
+        assert_eq!(ok[0].0, 700, "announced when samples resume");
+        // End-effector estimates: every tick but the 400 with joint 2 missing.
+        assert_eq!(ee_count, 600, "{:?}", core.stats);
+        assert_eq!(core.stats.ee_withheld, 400);
+    }
+}

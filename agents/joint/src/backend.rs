@@ -1,0 +1,234 @@
+//! Where a joint's readings come from. `sim` now; `dynamixel` arrives with the hardware issue.
+//!
+//! The sim backend evaluates the simulated world at each acquisition time: for a robot, the
+//! shared [`StrokeWorld`] gives this joint's link angle and deflection and the joint's own
+//! plant its torque; on a single-joint bench, the bench path (lever) or the AWAS dynamics.
+
+use rig_config::{JointKind, RigConfig, Topology};
+use rig_model::awas::AwasState;
+use rig_sim::awas_plant::{AwasInputs, AwasPlant};
+use rig_sim::effects::Effects;
+use rig_sim::lever_joint::{LeverJointPlant, SpringHysteresis};
+use rig_sim::noise::{Noise, quantize};
+use rig_sim::reproduce::paper_b::bench_path;
+use rig_sim::world::StrokeWorld;
+use thiserror::Error;
+
+/// Errors of a backend.
+#[derive(Debug, Error)]
+pub enum BackendError {
+    #[error("joint {0:?} is not in the config (joints: {1})")]
+    UnknownJoint(String, String),
+    #[error("simulated world: {0}")]
+    World(String),
+}
+
+/// One reading of the joint, and (simulated backends only) the truth.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Reading {
+    pub motor_rad: f64,
+    pub deflection_rad: f64,
+    pub pivot_m: Option<f64>,
+    pub torque_nm: Option<f64>,
+    pub stiffness_motor_rad: Option<f64>,
+    pub truth: Option<(f64, f64, f64)>,
+}
+
+/// Stroke amplitude and duration of the simulated hand in a running robot rig.
+pub const WORLD_STROKE_M: f64 = 0.006;
+pub const WORLD_STROKE_S: f64 = 4.0;
+
+enum Sim {
+    Robot {
+        world: StrokeWorld,
+        j: usize,
+        plant: LeverJointPlant,
+    },
+    Bench {
+        path: Vec<f64>,
+        period: f64,
+        plant: LeverJointPlant,
+    },
+    Awas {
+        plant: AwasPlant,
+        t_plant: f64,
+    },
+}
+
+/// The simulated joint.
+pub struct SimBackend {
+    sim: Sim,
+    noise: Noise,
+    resolution: f64,
+    torque_noise_nm: f64,
+}
+
+impl std::fmt::Debug for SimBackend {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("SimBackend")
+            .field("resolution", &self.resolution)
+            .finish_non_exhaustive()
+    }
+}
+
+/// The joint's index in the config.
+pub fn joint_index(cfg: &RigConfig, name: &str) -> Result<usize, BackendError> {
+    cfg.joints
+        .iter()
+        .position(|j| j.name == name)
+        .ok_or_else(|| {
+            BackendError::UnknownJoint(
+                name.to_string(),
+                cfg.joints
+                    .iter()
+                    .map(|j| j.name.as_str())
+                    .collect::<Vec<_>>()
+                    .join(", "),
+            )
+        })
+}
+
+impl SimBackend {
+    /// The simulated joint `j` of `cfg`, seeded.
+    pub fn new(cfg: &RigConfig, j: usize, seed: u64) -> Result<Self, BackendError> {
+        let joint = &cfg.joints[j];
+        let world = |e: String| BackendError::World(e);
+        let sim = match (&joint.kind, cfg.topology) {
+            (JointKind::Lever { vsa, .. }, Topology::Serial | Topology::Parallel) => {
+                let (robot, g) = cfg
+                    .robot()
+                    .zip(cfg.geometry)
+                    .ok_or_else(|| world("no robot geometry".into()))?;
+                let w = StrokeWorld::new(robot, g.home, WORLD_STROKE_M, WORLD_STROKE_S)
+                    .map_err(|e| world(e.to_string()))?;
+                let d0 = 0.5 * (vsa.d_min + vsa.d_max);
+                let plant = LeverJointPlant::new(
+                    *vsa,
+                    SpringHysteresis::default(),
+                    Effects::default(),
+                    d0,
+                    joint.limits.stiffness_rate,
+                )
+                .map_err(|e| world(e.to_string()))?;
+                Sim::Robot { world: w, j, plant }
+            }
+            (JointKind::Lever { vsa, .. }, Topology::Single) => {
+                let d0 = 0.5 * (vsa.d_min + vsa.d_max);
+                let plant = LeverJointPlant::new(
+                    *vsa,
+                    SpringHysteresis::default(),
+                    Effects::default(),
+                    d0,
+                    joint.limits.stiffness_rate,
+                )
+                .map_err(|e| world(e.to_string()))?;
+                let period = 1.0 / cfg.rate_hz;
+                Sim::Bench {
+                    path: bench_path((60.0 * cfg.rate_hz) as usize, period, 0.06, seed),
+                    period,
+                    plant,
+                }
+            }
+            (JointKind::Awas { awas, dynamics }, _) => Sim::Awas {
+                plant: AwasPlant::new(
+                    *awas,
+                    *dynamics,
+                    Effects::default(),
+                    AwasState {
+                        theta2: 150.0,
+                        ..Default::default()
+                    },
+                ),
+                t_plant: 0.0,
+            },
+        };
+        Ok(Self {
+            sim,
+            noise: Noise::new(seed),
+            resolution: joint.encoder.resolution_rad,
+            torque_noise_nm: 0.003,
+        })
+    }
+
+    /// The stiffness actuator's present position (pivot [m] or stiffness motor [rad]).
+    pub fn actuator(&self) -> f64 {
+        match &self.sim {
+            Sim::Robot { plant, .. } | Sim::Bench { plant, .. } => plant.pivot.d,
+            Sim::Awas { plant, .. } => plant.state.theta2,
+        }
+    }
+
+    /// Sets the stiffness actuator's goal (the servo moves there at its rate).
+    pub fn set_actuator_goal(&mut self, goal: f64) {
+        match &mut self.sim {
+            Sim::Robot { plant, .. } | Sim::Bench { plant, .. } => plant.pivot.goal = goal,
+            // The AWAS stiffness motor is torque-driven in the simulation; goals are held.
+            Sim::Awas { .. } => {}
+        }
+    }
+
+    /// Reads the joint at rig time `t` [s], `dt` after the previous reading.
+    pub fn read(&mut self, t: f64, dt: f64) -> Result<Reading, BackendError> {
+        let res = self.resolution;
+        match &mut self.sim {
+            Sim::Robot { world, j, plant } => {
+                let (link, defl) = world
+                    .joint(*j, t)
+                    .map_err(|e| BackendError::World(e.to_string()))?;
+                let tau = plant.torque(defl, t, dt);
+                Ok(Reading {
+                    motor_rad: world.motors[*j],
+                    deflection_rad: quantize(defl, res),
+                    pivot_m: Some(plant.pivot.d),
+                    torque_nm: None,
+                    stiffness_motor_rad: None,
+                    truth: Some((defl, tau, link)),
+                })
+            }
+            Sim::Bench {
+                path,
+                period,
+                plant,
+            } => {
+                let k = ((t / *period).round() as usize) % path.len().max(1);
+                let defl = path.get(k).copied().unwrap_or(0.0);
+                let tau = plant.torque(defl, t, dt);
+                Ok(Reading {
+                    motor_rad: 0.0,
+                    deflection_rad: quantize(defl, res),
+                    pivot_m: Some(plant.pivot.d),
+                    torque_nm: Some(tau + self.noise.gaussian(self.torque_noise_nm)),
+                    stiffness_motor_rad: None,
+                    truth: Some((defl, tau, defl)),
+                })
+            }
+            Sim::Awas { plant, t_plant } => {
+                // Integrate the dynamics up to t with the paper-A drive.
+                let w = std::f64::consts::TAU;
+                let h = 1e-3;
+                while *t_plant + 0.5 * h < t {
+                    let tp = *t_plant;
+                    let u = AwasInputs {
+                        tau1: 6.0 * (w * 0.7 * tp).sin()
+                            + 3.0 * (w * 2.3 * tp).sin()
+                            + 1.5 * (w * 9.0 * tp).sin(),
+                        tau2: 0.004 * (w * 0.05 * tp).sin(),
+                        tau_ext: 0.0,
+                    };
+                    plant.step(&u, tp, h, 2);
+                    *t_plant += h;
+                }
+                let s = plant.state;
+                let tau = plant.elastic_torque(t);
+                Ok(Reading {
+                    motor_rad: quantize(s.theta1, res),
+                    deflection_rad: quantize(s.q, res) - quantize(s.theta1, res),
+                    pivot_m: None,
+                    torque_nm: Some(tau + self.noise.gaussian(0.05)),
+                    stiffness_motor_rad: Some(s.theta2),
+                    truth: Some((s.q - s.theta1, tau, s.q)),
+                })
+            }
+        }
+    }
+}

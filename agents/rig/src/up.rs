@@ -1,0 +1,293 @@
+//! `rig up`: the whole simulated rig on one machine — one joint agent per joint, the
+//! estimator host, the allocator host — each with its own Zenoh session, peers on loopback
+//! (no router), until Ctrl-C or `--duration`. Then a one-screen summary: samples, estimates,
+//! and the end-effector force estimate scored against the simulated truth.
+//!
+//! The roles run as tasks of this process but talk only through Zenoh, exactly as the
+//! separate `rig-joint`, `rig estimator` and `rig allocator` processes do.
+
+use std::collections::BTreeMap;
+use std::path::PathBuf;
+use std::time::Duration;
+
+use rig_allocator::edge::{AllocatorOptions, run as run_allocator};
+use rig_config::{RigConfig, Topology};
+use rig_estimator::edge::{EstimatorOptions, run as run_estimator};
+use rig_joint::agent::{AgentOptions, run as run_joint};
+use rig_joint::backend::{WORLD_STROKE_M, WORLD_STROKE_S};
+use rig_protocol::{
+    AllocationRequest, AllocationTarget, EeEstimate, JointSample, Keys, SimTruth, decode, encode,
+};
+use rig_runtime::{NetOverrides, now_ns, open};
+use rig_sim::world::StrokeWorld;
+use tokio::sync::watch;
+
+use crate::error::CliError;
+
+#[derive(Debug, clap::Args)]
+pub struct Args {
+    /// Rig config (default: the example parallel robot, rig-config/examples/parallel.toml)
+    #[arg(long, value_name = "FILE")]
+    config: Option<PathBuf>,
+    /// Run this many seconds, then print the summary (default: until Ctrl-C)
+    #[arg(long, value_name = "SECONDS")]
+    duration: Option<f64>,
+    /// Endpoint the rig's hub listens on, so outside clients can join (default: a free
+    /// loopback port), e.g. tcp/127.0.0.1:7447
+    #[arg(long, value_name = "ENDPOINT")]
+    listen: Vec<String>,
+    /// Also connect to these endpoints (e.g. a router or another machine's rig)
+    #[arg(long, value_name = "ENDPOINT")]
+    connect: Vec<String>,
+    /// Decoupled stiffness goal for the allocator, percent of the range (robots only)
+    #[arg(long, default_value_t = 25.0, value_name = "P")]
+    percent: f64,
+    /// Seed of the simulated sensors
+    #[arg(long, default_value_t = 1)]
+    seed: u64,
+}
+
+fn free_loopback_endpoint() -> Result<String, CliError> {
+    let l = std::net::TcpListener::bind("127.0.0.1:0")?;
+    Ok(format!("tcp/127.0.0.1:{}", l.local_addr()?.port()))
+}
+
+/// What the summary watches.
+#[derive(Debug, Default)]
+struct Watch {
+    samples: BTreeMap<u16, u64>,
+    truths: BTreeMap<u64, BTreeMap<u16, f64>>,
+    ee: Vec<EeEstimate>,
+}
+
+pub fn run(args: &Args) -> Result<(), CliError> {
+    let cfg = match &args.config {
+        Some(p) => rig_config::load(p)?,
+        None => rig_config::examples::load("parallel")?,
+    };
+    let rt = tokio::runtime::Builder::new_multi_thread()
+        .worker_threads(2)
+        .enable_all()
+        .build()?;
+    rt.block_on(up(cfg, args))
+}
+
+async fn up(cfg: RigConfig, args: &Args) -> Result<(), CliError> {
+    let hub = match args.listen.first() {
+        Some(e) => e.clone(),
+        None => free_loopback_endpoint()?,
+    };
+    let mut listen = vec![hub.clone()];
+    listen.extend(args.listen.iter().skip(1).cloned());
+    let start_ns = now_ns();
+    let duration = args
+        .duration
+        .filter(|d| d.is_finite() && *d > 0.0)
+        .map(Duration::from_secs_f64);
+    let (stop_tx, stop_rx) = watch::channel(false);
+    let stopped = |mut rx: watch::Receiver<bool>| async move {
+        let _ = rx.wait_for(|s| *s).await;
+    };
+    let peer = NetOverrides {
+        listen: vec![],
+        connect: std::iter::once(hub.clone())
+            .chain(args.connect.iter().cloned())
+            .collect(),
+    };
+    let err = |e: String| CliError::Unsupported(e);
+
+    // The estimator is the hub: it listens; everyone else connects to it.
+    let est = tokio::spawn(run_estimator(
+        EstimatorOptions {
+            cfg: cfg.clone(),
+            net: NetOverrides {
+                listen,
+                connect: args.connect.clone(),
+            },
+            duration: None,
+        },
+        stopped(stop_rx.clone()),
+    ));
+    tokio::time::sleep(Duration::from_millis(300)).await;
+    let alloc = tokio::spawn(run_allocator(
+        AllocatorOptions {
+            cfg: cfg.clone(),
+            net: peer.clone(),
+            duration: None,
+        },
+        stopped(stop_rx.clone()),
+    ));
+    let mut joints = Vec::new();
+    for j in &cfg.joints {
+        let o = AgentOptions {
+            cfg: cfg.clone(),
+            joint: j.name.clone(),
+            net: peer.clone(),
+            start_ns,
+            seed: args.seed,
+            duration: None,
+        };
+        joints.push((
+            j.name.clone(),
+            tokio::spawn(run_joint(o, stopped(stop_rx.clone()))),
+        ));
+    }
+
+    // The summary's own session: it watches samples, truths and end-effector estimates.
+    let keys = Keys::new(&cfg.name).map_err(|e| err(e.to_string()))?;
+    let session = open(&cfg.zenoh, &peer)
+        .await
+        .map_err(|e| err(e.to_string()))?;
+    let subs = (
+        session
+            .declare_subscriber(format!("rig/{}/joint/*/sample", cfg.name))
+            .await
+            .map_err(|e| err(e.to_string()))?,
+        session
+            .declare_subscriber(format!("rig/{}/sim/joint/*/truth", cfg.name))
+            .await
+            .map_err(|e| err(e.to_string()))?,
+        session
+            .declare_subscriber(keys.ee_estimate())
+            .await
+            .map_err(|e| err(e.to_string()))?,
+    );
+    eprintln!(
+        "rig up: rig \"{}\" ({}, {} joints) on {hub}; {}",
+        cfg.name,
+        cfg.topology.name(),
+        cfg.joints.len(),
+        duration.map_or("Ctrl-C to stop".to_string(), |d| format!(
+            "running {:.1} s",
+            d.as_secs_f64()
+        ))
+    );
+    if cfg.topology != Topology::Single {
+        // A continuous decoupled goal for the allocator, once everyone is up.
+        tokio::time::sleep(Duration::from_millis(500)).await;
+        let home = cfg.geometry.map_or((0.0, 0.0), |g| g.home);
+        let goal = AllocationRequest {
+            id: 1,
+            x_m: home.0,
+            y_m: home.1,
+            target: AllocationTarget::Percent(args.percent),
+        };
+        if let Ok(bytes) = encode(&goal) {
+            session
+                .put(keys.stiffness_goal(), bytes)
+                .await
+                .map_err(|e| err(e.to_string()))?;
+        }
+    }
+
+    let mut w = Watch::default();
+    let deadline = duration.map(|d| tokio::time::Instant::now() + d);
+    let ctrl_c = tokio::signal::ctrl_c();
+    tokio::pin!(ctrl_c);
+    loop {
+        let sleep_until =
+            deadline.unwrap_or_else(|| tokio::time::Instant::now() + Duration::from_secs(3600));
+        tokio::select! {
+            _ = &mut ctrl_c => break,
+            _ = tokio::time::sleep_until(sleep_until) => break,
+            s = subs.0.recv_async() => if let Ok(s) = s && let Ok(m) = decode::<JointSample>(&s.payload().to_bytes()) {
+                *w.samples.entry(m.joint).or_default() += 1;
+            },
+            s = subs.1.recv_async() => if let Ok(s) = s && let Ok(m) = decode::<SimTruth>(&s.payload().to_bytes()) {
+                w.truths.entry(m.t_acq_ns).or_default().insert(m.joint, m.torque_nm);
+            },
+            s = subs.2.recv_async() => if let Ok(s) = s && let Ok(m) = decode::<EeEstimate>(&s.payload().to_bytes()) {
+                w.ee.push(m);
+            },
+        }
+    }
+    let _ = stop_tx.send(true);
+    let mut joint_reports = Vec::new();
+    for (name, h) in joints {
+        joint_reports.push((
+            name,
+            h.await
+                .map_err(|e| err(e.to_string()))?
+                .map_err(|e| err(e.to_string()))?,
+        ));
+    }
+    let est_report = est
+        .await
+        .map_err(|e| err(e.to_string()))?
+        .map_err(|e| err(e.to_string()))?;
+    let alloc_report = alloc
+        .await
+        .map_err(|e| err(e.to_string()))?
+        .map_err(|e| err(e.to_string()))?;
+    let _ = session.close().await;
+
+    println!(
+        "rig \"{}\" ran {:.1} s ({} topology, {} Hz)",
+        cfg.name,
+        now_ns().saturating_sub(start_ns) as f64 * 1e-9,
+        cfg.topology.name(),
+        cfg.rate_hz
+    );
+    println!(
+        "{:<8} {:>9} {:>9} {:>10} {:>10}",
+        "joint", "samples", "skipped", "commands", "rejected"
+    );
+    for (name, r) in &joint_reports {
+        println!(
+            "{:<8} {:>9} {:>9} {:>10} {:>10}",
+            name, r.samples, r.skipped_ticks, r.commands_accepted, r.commands_rejected
+        );
+    }
+    let c = est_report.core;
+    println!(
+        "estimator: {} samples → {} joint estimates, {} end-effector estimates ({} withheld, {} late, {} malformed)",
+        c.samples,
+        c.joint_estimates,
+        c.ee_estimates,
+        c.ee_withheld,
+        c.late_dropped,
+        est_report.malformed
+    );
+    println!(
+        "sample age at the estimator: median {} µs, p99 {} µs, max {} µs",
+        est_report.age_us[0], est_report.age_us[1], est_report.age_us[2]
+    );
+    println!(
+        "allocator: {} goals, {} requests, {} pivot commands sent",
+        alloc_report.goals, alloc_report.requests, alloc_report.commands
+    );
+    if let Some(line) = force_error(&cfg, &w, start_ns) {
+        println!("{line}");
+    }
+    Ok(())
+}
+
+/// The estimated force against the simulated truth, over the estimates whose tick has every
+/// joint's true torque.
+fn force_error(cfg: &RigConfig, w: &Watch, start_ns: u64) -> Option<String> {
+    let (robot, g) = cfg.robot().zip(cfg.geometry)?;
+    let world = StrokeWorld::new(robot, g.home, WORLD_STROKE_M, WORLD_STROKE_S).ok()?;
+    let n = cfg.joints.len();
+    let (mut sq, mut count, mut peak) = (0.0, 0usize, 0.0_f64);
+    for e in &w.ee {
+        let Some((fx, fy)) = e.force_n else { continue };
+        let Some(t) = w.truths.get(&e.t_ns).filter(|t| t.len() == n) else {
+            continue;
+        };
+        let torques: Vec<f64> = t.values().copied().collect();
+        let Ok(f) = world.force(e.t_ns.saturating_sub(start_ns) as f64 * 1e-9, &torques) else {
+            continue;
+        };
+        sq += (fx - f[0]).powi(2) + (fy - f[1]).powi(2);
+        peak = peak.max(f.norm());
+        count += 1;
+    }
+    if count == 0 {
+        return Some("force vs simulated truth: no estimate matched a complete truth".into());
+    }
+    let rmse = (sq / count as f64).sqrt();
+    Some(format!(
+        "force vs simulated truth over {count} estimates: RMSE {rmse:.4} N = {:.2} % of the {peak:.3} N peak",
+        100.0 * rmse / peak.max(1e-12)
+    ))
+}
