@@ -1,0 +1,55 @@
+//! `rig-joint` refuses bad input with a clear message and a non-zero status.
+
+// Test helpers may panic: a failed helper is a failed test.
+#![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)]
+
+use std::path::Path;
+use std::process::Command;
+
+fn example() -> String {
+    Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("../../rig-config/examples/parallel.toml")
+        .to_string_lossy()
+        .into_owned()
+}
+
+fn run(args: &[&str]) -> (Option<i32>, String) {
+    let o = Command::new(env!("CARGO_BIN_EXE_rig-joint"))
+        .args(args)
+        .output()
+        .unwrap();
+    (
+        o.status.code(),
+        String::from_utf8_lossy(&o.stderr).into_owned(),
+    )
+}
+
+#[test]
+fn bad_config_unknown_joint_and_missing_backend_are_clear_errors() {
+    let (code, err) = run(&["--config", "/nonexistent.toml", "--joint", "j1"]);
+    assert_eq!(code, Some(1));
+    assert!(err.contains("cannot read the file"), "{err}");
+    let (code, err) = run(&["--config", &example(), "--joint", "j9", "--duration", "0.1"]);
+    assert_eq!(code, Some(1));
+    assert!(
+        err.contains("j9") && err.contains("j1, j2, j3, j4"),
+        "{err}"
+    );
+    let (code, err) = run(&[
+        "--config",
+        &example(),
+        "--joint",
+        "j1",
+        "--backend",
+        "dynamixel",
+    ]);
+    assert_eq!(code, Some(2));
+    assert!(err.contains("--backend sim"), "{err}");
+}
+
+#[test]
+fn runs_for_a_duration_and_reports() {
+    let (code, err) = run(&["--config", &example(), "--joint", "j2", "--duration", "0.5"]);
+    assert_eq!(code, Some(0), "{err}");
+    assert!(err.contains("samples"), "{err}");
+}
