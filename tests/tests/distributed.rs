@@ -383,3 +383,81 @@ fn a_python_client_subscribes_and_decodes_a_sample() {
         "consecutive samples: {seqs:?}"
     );
 }
+
+#[test]
+fn a_recording_replays_offline_to_the_same_estimates_and_survives_a_killed_recorder() {
+    let _one_at_a_time = serial();
+    let hub = format!("tcp/127.0.0.1:{}", free_port());
+    let dir = std::env::temp_dir().join(format!("rig-record-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let (full, killed) = (dir.join("full.mcap"), dir.join("killed.mcap"));
+    let _est = host("estimator", &hub);
+    std::thread::sleep(Duration::from_millis(500));
+    // Both recorders are connected before any joint publishes: the recording then holds every
+    // sample the live estimator uses.
+    let mut rec = spawn(
+        "rig",
+        &s(&[
+            "record",
+            "--connect",
+            &hub,
+            "--out",
+            full.to_str().unwrap(),
+            "--duration",
+            "7",
+        ]),
+    );
+    let mut rec_killed = spawn(
+        "rig",
+        &s(&[
+            "record",
+            "--connect",
+            &hub,
+            "--out",
+            killed.to_str().unwrap(),
+        ]),
+    );
+    std::thread::sleep(Duration::from_millis(1500));
+    let start = now_ns();
+    let joints: Vec<Proc> = ["j1", "j2", "j3", "j4"]
+        .iter()
+        .map(|j| joint(j, &hub, start))
+        .collect();
+    std::thread::sleep(Duration::from_secs(3));
+    rec_killed.0.kill().unwrap(); // SIGKILL: no footer, no final flush
+    let _ = rec_killed.0.wait();
+    std::thread::sleep(Duration::from_millis(1500));
+    drop(joints); // the joints stop before the recorder does
+    assert!(
+        rec.0.wait().unwrap().success(),
+        "the recorder ends after its duration"
+    );
+
+    let replay = |file: &Path| {
+        let o = Command::new(bin("rig"))
+            .args(["replay", "--estimate", "--json", file.to_str().unwrap()])
+            .output()
+            .unwrap();
+        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+        (
+            serde_json::from_slice::<serde_json::Value>(&o.stdout).unwrap(),
+            String::from_utf8_lossy(&o.stderr).into_owned(),
+        )
+    };
+    let (v, err) = replay(&full);
+    assert!(!err.contains("lost"), "{err}");
+    let matched = v["matched"].as_u64().unwrap();
+    assert!(
+        matched > 1000 && matched == v["live_ee_estimates"].as_u64().unwrap(),
+        "{v}"
+    );
+    assert_eq!(
+        v["max_force_diff_n"].as_f64().unwrap(),
+        0.0,
+        "offline and live estimates differ: {v}"
+    );
+    // The killed recorder's file still reads back to its last flushed record.
+    let (v, _) = replay(&killed);
+    assert!(v["samples"].as_u64().unwrap() > 1000, "{v}");
+    std::fs::remove_dir_all(&dir).ok();
+}

@@ -4,6 +4,8 @@
 //!   is processed when every joint has reported it, in tick order. A tick some joints never
 //!   report is processed without them once `max_lag` newer ticks have been seen (their models
 //!   skip it; what needs every joint — the end-effector estimate — is withheld and counted).
+//! - **Start**: incomplete ticks before the first complete one are dropped, so the models
+//!   start on the same tick whatever order the first samples arrived in.
 //! - **Staleness**: a joint whose samples stop for `stale_after` is marked stale with a status
 //!   saying why; nothing that depends on it is published until it returns, which is announced.
 //! - **Per joint**: paper B's restoring-torque model for a lever VSA; paper A's decoupled
@@ -47,6 +49,9 @@ pub struct CoreStats {
     pub joint_estimates: u64,
     pub ee_estimates: u64,
     pub ee_withheld: u64,
+    /// Incomplete ticks before the first complete one, dropped so that every model starts
+    /// on the same tick whatever the arrival order (what makes offline replays exact).
+    pub startup_skipped: u64,
     pub errors: u64,
 }
 
@@ -56,6 +61,9 @@ enum PerJoint {
     Lever(Box<RestoringTorqueModel>),
     Awas(Box<DecoupledObserver>),
 }
+
+/// How long a joint that never reported may take to come up before it is called stale.
+pub const STARTUP_GRACE_NS: u64 = 5_000_000_000;
 
 /// Timing parameters.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -87,6 +95,7 @@ pub struct EstimatorCore {
     pending: BTreeMap<u64, Vec<Option<JointSample>>>,
     newest_tick: Option<u64>,
     last_processed: Option<u64>,
+    seen_complete: bool,
     last_seen_ns: Vec<Option<u64>>,
     started_ns: Option<u64>,
     stale: Vec<bool>,
@@ -161,6 +170,7 @@ impl EstimatorCore {
             pending: BTreeMap::new(),
             newest_tick: None,
             last_processed: None,
+            seen_complete: false,
             last_seen_ns: vec![None; n],
             started_ns: None,
             stale: vec![false; n],
@@ -231,7 +241,13 @@ impl EstimatorCore {
         for j in 0..self.names.len() {
             let since = self.last_seen_ns[j].unwrap_or(start);
             let silent = now_ns.saturating_sub(since);
-            if !self.stale[j] && silent > self.timing.stale_after_ns {
+            // A joint never heard from gets a start-up grace: agents come up in any order.
+            let limit = if self.last_seen_ns[j].is_some() {
+                self.timing.stale_after_ns
+            } else {
+                self.timing.stale_after_ns.max(STARTUP_GRACE_NS)
+            };
+            if !self.stale[j] && silent > limit {
                 self.stale[j] = true;
                 let (name, ms, limit) = (
                     self.names[j].clone(),
@@ -270,6 +286,12 @@ impl EstimatorCore {
             }
             let slots = self.pending.remove(&tick).unwrap_or_default();
             self.last_processed = Some(tick);
+            let all = slots.iter().all(Option::is_some);
+            if !self.seen_complete && !all {
+                self.stats.startup_skipped += 1;
+                continue;
+            }
+            self.seen_complete = true;
             self.process(tick, &slots, out);
         }
     }
@@ -455,7 +477,11 @@ mod tests {
 
     #[test]
     fn a_silent_joint_goes_stale_withholds_ee_and_recovers() {
-        let t = CoreTiming::for_rate(1000.0);
+        let t = CoreTiming {
+            period_ns: 1_000_000,
+            stale_after_ns: 200_000_000,
+            max_lag: 20,
+        };
         let mut core = EstimatorCore::new(&cfg(), t).unwrap();
         let ms = 1_000_000u64;
         let mut ee_count = 0;

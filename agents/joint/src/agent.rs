@@ -33,6 +33,9 @@ fn z<E: std::fmt::Display>(e: E) -> AgentError {
 /// Most ticks sampled at one wake-up after a late timer; older ones are skipped and counted.
 const MAX_CATCH_UP: u64 = 50;
 
+/// Pause between joining the rig and the first sample.
+const SETTLE: Duration = Duration::from_millis(500);
+
 /// How to run one agent.
 #[derive(Debug, Clone)]
 pub struct AgentOptions {
@@ -136,6 +139,9 @@ pub async fn run(
         session.put(&k0, bytes).await.map_err(z)?;
     }
 
+    // Let gossip link this peer to the rig's other peers (estimator, recorders, viewers)
+    // before the first sample: in peer-to-peer mode a sample reaches only peers already linked.
+    tokio::time::sleep(SETTLE).await;
     let mut ticker = tokio::time::interval(Duration::from_nanos(period_ns));
     ticker.set_missed_tick_behavior(tokio::time::MissedTickBehavior::Skip);
     let deadline = opts.duration.map(|d| tokio::time::Instant::now() + d);

@@ -5,6 +5,7 @@
 //!   (`rig_joint`), the estimator host (`rig_estimator`: its core turns samples into torques
 //!   and the end-effector force), the allocator host (`rig_allocator`);
 //! - `rig estimator`, `rig allocator` → [`hosts`]: those hosts as processes of their own;
+//! - `rig record`, `rig replay` → [`record`] (MCAP; `--estimate` runs `rig_estimator::core`);
 //! - `rig validate` → [`validate`] → `rig_config::load`;
 //! - `rig allocate` → [`allocate`] → `rig_model::planar` (S matrix at the pose) and
 //!   `rig_model::allocation` (bounded least squares, tie-break) and `rig_model::lever`
@@ -17,6 +18,7 @@ mod allocate;
 mod error;
 mod hosts;
 mod progress;
+mod record;
 mod reproduce;
 mod sim;
 mod up;
@@ -47,6 +49,11 @@ enum Command {
     Estimator(hosts::HostArgs),
     /// Run the allocator host: allocation queries and stiffness goals in, pivot commands out.
     Allocator(hosts::HostArgs),
+    /// Record every message of a running rig (rig/<rig>/**) into an MCAP file.
+    Record(record::RecordArgs),
+    /// Republish an MCAP recording, or with --estimate run the estimator offline over it and
+    /// compare with the live estimates it holds.
+    Replay(record::ReplayArgs),
     /// Check rig config files; print a summary, or every problem with file, line and field.
     ///
     /// Exit status: 0 when every file is valid, 1 otherwise.
@@ -73,6 +80,8 @@ fn main() -> ExitCode {
         Command::Up(a) => up::run(&a),
         Command::Estimator(a) => hosts::estimator(&a),
         Command::Allocator(a) => hosts::allocator(&a),
+        Command::Record(a) => record::record(&a),
+        Command::Replay(a) => record::replay(&a),
         Command::Validate(a) => validate::run(&a),
         Command::Allocate(a) => allocate::run(&a),
         Command::Sim(a) => sim::run(&a),
