@@ -6,24 +6,12 @@ use std::time::Duration;
 
 use rig_config::RigConfig;
 use rig_protocol::{AllocationRequest, EeEstimate, JointCommand, Keys, decode, encode};
-use rig_runtime::{NetOverrides, now_ns, open};
-use thiserror::Error;
+use rig_runtime::{NetOverrides, now_ns, open, zenoh_err as z};
 
 use crate::core::AllocatorCore;
 
-#[derive(Debug, Error)]
-pub enum AllocatorError {
-    #[error(transparent)]
-    Runtime(#[from] rig_runtime::RuntimeError),
-    #[error("zenoh: {0}")]
-    Zenoh(String),
-    #[error("{0}")]
-    Key(#[from] rig_protocol::KeyError),
-}
-
-fn z<E: std::fmt::Display>(e: E) -> AllocatorError {
-    AllocatorError::Zenoh(e.to_string())
-}
+/// The allocator host fails only at its Zenoh edge.
+pub type AllocatorError = rig_runtime::RuntimeError;
 
 #[derive(Debug, Clone)]
 pub struct AllocatorOptions {

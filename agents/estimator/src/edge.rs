@@ -5,7 +5,7 @@ use std::time::Duration;
 
 use rig_config::RigConfig;
 use rig_protocol::{JointSample, Keys, decode, encode};
-use rig_runtime::{NetOverrides, now_ns, open};
+use rig_runtime::{NetOverrides, now_ns, open, zenoh_err as z};
 use thiserror::Error;
 
 use crate::core::{CoreStats, CoreTiming, EstimatorCore, Output};
@@ -16,14 +16,12 @@ pub enum EstimatorError {
     Core(#[from] crate::core::CoreError),
     #[error(transparent)]
     Runtime(#[from] rig_runtime::RuntimeError),
-    #[error("zenoh: {0}")]
-    Zenoh(String),
-    #[error("{0}")]
-    Key(#[from] rig_protocol::KeyError),
 }
 
-fn z<E: std::fmt::Display>(e: E) -> EstimatorError {
-    EstimatorError::Zenoh(e.to_string())
+impl From<rig_protocol::KeyError> for EstimatorError {
+    fn from(e: rig_protocol::KeyError) -> Self {
+        Self::Runtime(e.into())
+    }
 }
 
 /// How to run the estimator host.

@@ -7,7 +7,7 @@ use rig_config::{JointKind, RigConfig};
 use rig_protocol::{
     JointCommand, JointSample, JointState, JointStatus, Keys, SimTruth, decode, encode,
 };
-use rig_runtime::{NetOverrides, now_ns, open};
+use rig_runtime::{NetOverrides, now_ns, open, zenoh_err as z};
 use thiserror::Error;
 
 use crate::backend::{BackendError, SimBackend, joint_index};
@@ -20,14 +20,12 @@ pub enum AgentError {
     Backend(#[from] BackendError),
     #[error(transparent)]
     Runtime(#[from] rig_runtime::RuntimeError),
-    #[error("zenoh: {0}")]
-    Zenoh(String),
-    #[error("{0}")]
-    Key(#[from] rig_protocol::KeyError),
 }
 
-fn z<E: std::fmt::Display>(e: E) -> AgentError {
-    AgentError::Zenoh(e.to_string())
+impl From<rig_protocol::KeyError> for AgentError {
+    fn from(e: rig_protocol::KeyError) -> Self {
+        Self::Runtime(e.into())
+    }
 }
 
 /// Most ticks sampled at one wake-up after a late timer; older ones are skipped and counted.

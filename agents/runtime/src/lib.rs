@@ -22,6 +22,17 @@ pub enum RuntimeError {
     Session(String),
     #[error("invalid endpoint {endpoint:?}: {why}")]
     Endpoint { endpoint: String, why: String },
+    /// A Zenoh operation (declare, put, reply, close) failed.
+    #[error("zenoh: {0}")]
+    Zenoh(String),
+    /// A key expression could not be built from the config's names.
+    #[error("{0}")]
+    Key(#[from] rig_protocol::KeyError),
+}
+
+/// Wraps any Zenoh error, for `.map_err(zenoh_err)?` at the edges.
+pub fn zenoh_err<E: std::fmt::Display>(e: E) -> RuntimeError {
+    RuntimeError::Zenoh(e.to_string())
 }
 
 /// Endpoint overrides from the command line.
