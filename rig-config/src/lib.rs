@@ -31,16 +31,28 @@ pub enum Topology {
     Serial,
     /// Five-bar with four VSAs and a passive fifth joint (paper B).
     Parallel,
+    /// Independent joints on a test bench, 1 to [`MAX_BENCH_JOINTS`]: no robot, each joint
+    /// estimated alone (a spring-characterisation bench, or a throughput test).
+    Bench,
 }
 
+/// Most joints a bench rig may have.
+pub const MAX_BENCH_JOINTS: usize = 64;
+
 impl Topology {
-    /// Joints the topology needs.
-    pub fn joint_count(self) -> usize {
+    /// How many joints the topology takes: (fewest, most).
+    pub fn joint_count(self) -> (usize, usize) {
         match self {
-            Topology::Single => 1,
-            Topology::Serial => 2,
-            Topology::Parallel => 4,
+            Topology::Single => (1, 1),
+            Topology::Serial => (2, 2),
+            Topology::Parallel => (4, 4),
+            Topology::Bench => (1, MAX_BENCH_JOINTS),
         }
+    }
+
+    /// Whether the joints form a planar robot (serial or parallel).
+    pub fn is_robot(self) -> bool {
+        matches!(self, Topology::Serial | Topology::Parallel)
     }
 
     pub fn name(self) -> &'static str {
@@ -48,6 +60,7 @@ impl Topology {
             Topology::Single => "single",
             Topology::Serial => "serial",
             Topology::Parallel => "parallel",
+            Topology::Bench => "bench",
         }
     }
 }
@@ -201,7 +214,7 @@ impl RigConfig {
         let g = self.geometry?;
         // Geometry was validated, so construction cannot fail; map errors to None anyway.
         match self.topology {
-            Topology::Single => None,
+            Topology::Single | Topology::Bench => None,
             Topology::Serial => SerialArm::new(g.l1, g.l2, g.elbow1)
                 .ok()
                 .map(PlanarRobot::Serial),

@@ -193,6 +193,35 @@ fn topology_joint_count_and_bounds_are_checked() {
 }
 
 #[test]
+fn a_bench_takes_independent_joints_and_no_geometry() {
+    // The serial example's two joints as a bench: valid without the geometry table.
+    let (path, src) = example("serial.toml");
+    let start = src.find("[geometry]").unwrap();
+    let end = start + src[start..].find("\n[zenoh]").unwrap();
+    let bench = format!("{}{}", &src[..start], &src[end..]).replacen(
+        "topology = \"serial\"",
+        "topology = \"bench\"",
+        1,
+    );
+    let cfg = parse(&path, &bench).unwrap();
+    assert_eq!(cfg.topology, Topology::Bench);
+    assert_eq!(cfg.joints.len(), 2);
+    assert!(cfg.robot().is_none());
+    // With the geometry it is refused, naming the table.
+    let e = errors_after(
+        "serial.toml",
+        "topology = \"serial\"",
+        "topology = \"bench\"",
+    );
+    assert!(
+        e.iter()
+            .any(|e| e.field == "geometry" && e.message.contains("bench rig has no [geometry]")),
+        "{e:?}"
+    );
+    assert_eq!(Topology::Bench.joint_count(), (1, MAX_BENCH_JOINTS));
+}
+
+#[test]
 fn zenoh_endpoints_are_checked() {
     let e = errors_after(
         "parallel.toml",

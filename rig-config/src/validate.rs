@@ -115,6 +115,7 @@ fn build(c: &mut Collector<'_>, raw: &RawConfig) -> Option<RigConfig> {
             ("single", Topology::Single),
             ("serial", Topology::Serial),
             ("parallel", Topology::Parallel),
+            ("bench", Topology::Bench),
         ],
     );
     let rate_hz = raw.rig.rate_hz.unwrap_or(1000.0);
@@ -129,18 +130,20 @@ fn build(c: &mut Collector<'_>, raw: &RawConfig) -> Option<RigConfig> {
 
     // Joints.
     let jp = root.key("joint");
-    if let Some(t) = topology
-        && raw.joint.len() != t.joint_count()
-    {
-        c.push(
-            &jp,
-            format!(
-                "a {} rig has {} [[joint]] tables, found {}",
-                t.name(),
-                t.joint_count(),
-                raw.joint.len()
-            ),
-        );
+    if let Some(t) = topology {
+        let (lo, hi) = t.joint_count();
+        let n = raw.joint.len();
+        if n < lo || n > hi {
+            let want = if lo == hi {
+                format!("{lo}")
+            } else {
+                format!("{lo} to {hi}")
+            };
+            c.push(
+                &jp,
+                format!("a {} rig has {want} [[joint]] tables, found {n}", t.name()),
+            );
+        }
     }
     let mut joints = Vec::new();
     let mut names: HashMap<&str, usize> = HashMap::new();
@@ -203,7 +206,7 @@ fn rig_protocol_name(what: &'static str, name: &str) -> Result<(), String> {
 fn geometry(c: &mut Collector<'_>, t: Topology, raw: Option<&RawGeometry>) -> Option<Geometry> {
     let p = FieldPath::default().key("geometry");
     let Some(g) = raw else {
-        if t != Topology::Single {
+        if t.is_robot() {
             c.push(
                 &p,
                 format!(
@@ -214,8 +217,11 @@ fn geometry(c: &mut Collector<'_>, t: Topology, raw: Option<&RawGeometry>) -> Op
         }
         return None;
     };
-    if t == Topology::Single {
-        c.push(&p, "a single-joint rig has no [geometry]; remove the table");
+    if !t.is_robot() {
+        c.push(
+            &p,
+            format!("a {} rig has no [geometry]; remove the table", t.name()),
+        );
         return None;
     }
     let mut ok = true;

@@ -461,3 +461,67 @@ fn a_recording_replays_offline_to_the_same_estimates_and_survives_a_killed_recor
     assert!(v["samples"].as_u64().unwrap() > 1000, "{v}");
     std::fs::remove_dir_all(&dir).ok();
 }
+
+fn bench_json(args: &[&str]) -> serde_json::Value {
+    let o = Command::new(bin("rig"))
+        .arg("bench")
+        .args(args)
+        .arg("--json")
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    serde_json::from_slice(&o.stdout).unwrap()
+}
+
+fn u(v: &serde_json::Value, path: &[&str]) -> u64 {
+    let mut x = v;
+    for k in path {
+        x = &x[*k];
+    }
+    x.as_u64()
+        .unwrap_or_else(|| panic!("{path:?} missing in {v}"))
+}
+
+#[test]
+fn bench_latency_and_throughput_report_consistent_figures() {
+    let _one_at_a_time = serial();
+    // Latency: 4 joints × 1 kHz for 3 s after 300 timed round trips.
+    let v = bench_json(&["latency", "--duration", "3", "--pings", "300"]);
+    let (rtt50, rtt99) = (
+        u(&v, &["zenoh_rtt_us", "p50"]),
+        u(&v, &["zenoh_rtt_us", "p99"]),
+    );
+    assert!(0 < rtt50 && rtt50 <= rtt99 && rtt99 < 1_000_000, "{v}");
+    let (lat50, lat99) = (
+        u(&v, &["rig_latency_us", "p50"]),
+        u(&v, &["rig_latency_us", "p99"]),
+    );
+    assert!(0 < lat50 && lat50 <= lat99, "{v}");
+    // The latency contains its transport part, and every estimate of a tick comes after the first.
+    assert!(u(&v, &["rig_transport_us", "p50"]) <= lat50, "{v}");
+    assert!(lat50 <= u(&v, &["rig_all_published_us", "p50"]), "{v}");
+    let sent = u(&v, &["sent"]);
+    assert!(
+        (11_000..=12_100).contains(&sent),
+        "4 joints × 1 kHz × 3 s: {v}"
+    );
+    assert!(u(&v, &["lost"]) * 100 <= sent, "more than 1 % lost: {v}");
+    // Each tick gives 4 joint estimates and 1 end-effector estimate, all observed.
+    let observed = u(&v, &["estimates_observed"]);
+    assert!(
+        observed * 100 >= (sent * 5 / 4) * 95,
+        "{observed} observed: {v}"
+    );
+
+    // Throughput: 8 joints on one board, 2 s.
+    let v = bench_json(&["throughput", "--joints", "8", "--duration", "2"]);
+    assert_eq!(u(&v, &["joints"]), 8);
+    let sent = u(&v, &["sent"]);
+    assert!(
+        (15_000..=16_100).contains(&sent),
+        "8 joints × 1 kHz × 2 s: {v}"
+    );
+    assert!(u(&v, &["lost"]) * 100 <= sent, "more than 1 % lost: {v}");
+    let rate = v["samples_per_s"].as_f64().unwrap();
+    assert!((7_600.0..=8_400.0).contains(&rate), "{v}");
+}

@@ -79,10 +79,11 @@ impl Plan {
 
 /// Computes the allocation for `target` with the end effector at `at_m`.
 pub fn allocate(cfg: &RigConfig, at_m: (f64, f64), target: Target) -> Result<Plan, PlanError> {
-    if cfg.topology == Topology::Single {
-        return Err(PlanError::Unsupported(
-            "a single-joint rig has no operational space; allocation needs a serial or parallel robot".into(),
-        ));
+    if !cfg.topology.is_robot() {
+        return Err(PlanError::Unsupported(format!(
+            "a {} rig has no operational space; allocation needs a serial or parallel robot",
+            cfg.topology.name()
+        )));
     }
     let robot = cfg
         .robot()

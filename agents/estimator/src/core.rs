@@ -56,8 +56,13 @@ pub struct CoreStats {
 }
 
 enum PerJoint {
-    /// Lever joints (their models live in the robot estimator for a robot).
+    /// Lever joints of a robot (their models live in the robot estimator).
     Robot(Box<RobotEstimator>),
+    /// Joints on their own (a single joint or a bench), each with its model.
+    Alone(Vec<JointModel>),
+}
+
+enum JointModel {
     Lever(Box<RestoringTorqueModel>),
     Awas(Box<DecoupledObserver>),
 }
@@ -145,23 +150,38 @@ impl EstimatorCore {
                         .map_err(|e| CoreError::Setup(e.to_string()))?,
                 ))
             }
-            Topology::Single => match &cfg.joints[0].kind {
-                JointKind::Lever { .. } => {
-                    PerJoint::Lever(Box::new(lever_model(&cfg.joints[0].kind)?))
-                }
-                JointKind::Awas { dynamics, .. } => {
-                    let ts = timing.period_ns as f64 * 1e-9;
-                    let o = cfg.observer;
-                    let motor = Some(rig_model::observer::MotorParams {
-                        b1: dynamics.b1,
-                        d1: dynamics.d1,
-                    });
-                    PerJoint::Awas(Box::new(
-                        DecoupledObserver::new(o.ekf(ts), o.alpha, o.k0, motor)
-                            .map_err(|e| CoreError::Setup(e.to_string()))?,
-                    ))
-                }
-            },
+            Topology::Single | Topology::Bench => {
+                let ts = timing.period_ns as f64 * 1e-9;
+                let o = cfg.observer;
+                let model = |k: &JointKind| -> Result<JointModel, CoreError> {
+                    Ok(match k {
+                        JointKind::Lever {
+                            restoring,
+                            dead_band_rad,
+                            ..
+                        } => JointModel::Lever(Box::new(RestoringTorqueModel::new(
+                            (**restoring).clone(),
+                            *dead_band_rad,
+                        ))),
+                        JointKind::Awas { dynamics, .. } => {
+                            let motor = Some(rig_model::observer::MotorParams {
+                                b1: dynamics.b1,
+                                d1: dynamics.d1,
+                            });
+                            JointModel::Awas(Box::new(
+                                DecoupledObserver::new(o.ekf(ts), o.alpha, o.k0, motor)
+                                    .map_err(|e| CoreError::Setup(e.to_string()))?,
+                            ))
+                        }
+                    })
+                };
+                PerJoint::Alone(
+                    cfg.joints
+                        .iter()
+                        .map(|j| model(&j.kind))
+                        .collect::<Result<_, _>>()?,
+                )
+            }
         };
         Ok(Self {
             names: cfg.joints.iter().map(|j| j.name.clone()).collect(),
@@ -371,58 +391,66 @@ impl EstimatorCore {
                     self.stats.ee_withheld += 1;
                 }
             }
-            PerJoint::Lever(m) => {
-                if let Some(s) = &slots[0] {
-                    let pivot = s.pivot_m.unwrap_or(0.0);
-                    let tau = m.update(s.deflection_rad, pivot);
-                    joint_out.push(JointEstimate {
-                        joint: 0,
-                        seq: s.seq,
-                        t_acq_ns: s.t_acq_ns,
-                        torque_nm: tau,
-                        stiffness_nm_per_rad: Some(m.curve().at(pivot).k),
-                        inertia_kg_m2: None,
-                        inertia_var: None,
-                        damping_nms_per_rad: None,
-                        damping_var: None,
-                        residual_nm: s.torque_nm.map(|m| m - tau),
-                    });
-                }
-            }
-            PerJoint::Awas(obs) => {
-                if let Some(s) = &slots[0] {
-                    let sample = ImpedanceSample {
-                        q: s.motor_rad + s.deflection_rad,
-                        theta1: s.motor_rad,
-                        tau_e: s.torque_nm,
-                        tau1: s.motor_torque_nm,
-                        tau_ext: 0.0,
-                    };
-                    match obs.step(&sample) {
-                        Ok(e) => {
-                            let link = e.link;
-                            let finite = |v: Option<f64>| v.filter(|x| x.is_finite());
-                            joint_out.push(JointEstimate {
-                                joint: 0,
-                                seq: s.seq,
-                                t_acq_ns: s.t_acq_ns,
-                                torque_nm: if e.tau_e.is_finite() { e.tau_e } else { 0.0 },
-                                stiffness_nm_per_rad: finite(Some(e.stiffness)),
-                                inertia_kg_m2: finite(link.and_then(|l| l.inertia))
-                                    .filter(|v| *v >= 0.0),
-                                inertia_var: finite(link.and_then(|l| l.inertia_var)),
-                                damping_nms_per_rad: finite(link.and_then(|l| l.damping)),
-                                damping_var: finite(link.and_then(|l| l.damping_var)),
-                                residual_nm: None,
-                            });
-                        }
-                        Err(_) => self.stats.errors += 1,
+            PerJoint::Alone(models) => {
+                for (j, (s, model)) in slots.iter().zip(models.iter_mut()).enumerate() {
+                    let Some(s) = s else { continue };
+                    if let Some(e) = estimate_alone(j as u16, s, model) {
+                        joint_out.push(e);
+                    } else {
+                        self.stats.errors += 1;
                     }
                 }
             }
         }
         self.stats.joint_estimates += joint_out.len() as u64;
         out.extend(joint_out.into_iter().map(Output::Joint));
+    }
+}
+
+/// One joint estimated on its own: paper B's restoring torque for a lever VSA, paper A's
+/// decoupled observer for an AWAS joint. None when the observer refuses the sample.
+fn estimate_alone(joint: u16, s: &JointSample, model: &mut JointModel) -> Option<JointEstimate> {
+    match model {
+        JointModel::Lever(m) => {
+            let pivot = s.pivot_m.unwrap_or(0.0);
+            let tau = m.update(s.deflection_rad, pivot);
+            Some(JointEstimate {
+                joint,
+                seq: s.seq,
+                t_acq_ns: s.t_acq_ns,
+                torque_nm: tau,
+                stiffness_nm_per_rad: Some(m.curve().at(pivot).k),
+                inertia_kg_m2: None,
+                inertia_var: None,
+                damping_nms_per_rad: None,
+                damping_var: None,
+                residual_nm: s.torque_nm.map(|m| m - tau),
+            })
+        }
+        JointModel::Awas(obs) => {
+            let sample = ImpedanceSample {
+                q: s.motor_rad + s.deflection_rad,
+                theta1: s.motor_rad,
+                tau_e: s.torque_nm,
+                tau1: s.motor_torque_nm,
+                tau_ext: 0.0,
+            };
+            let e = obs.step(&sample).ok()?;
+            let link = e.link;
+            let finite = |v: Option<f64>| v.filter(|x| x.is_finite());
+            Some(JointEstimate {
+                joint,
+                seq: s.seq,
+                t_acq_ns: s.t_acq_ns,
+                torque_nm: if e.tau_e.is_finite() { e.tau_e } else { 0.0 },
+                stiffness_nm_per_rad: finite(Some(e.stiffness)),
+                inertia_kg_m2: finite(link.and_then(|l| l.inertia)).filter(|v| *v >= 0.0),
+                inertia_var: finite(link.and_then(|l| l.inertia_var)),
+                damping_nms_per_rad: finite(link.and_then(|l| l.damping)),
+                damping_var: finite(link.and_then(|l| l.damping_var)),
+                residual_nm: None,
+            })
+        }
     }
 }
 
@@ -528,5 +556,58 @@ mod tests {
         // End-effector estimates: every tick but the 400 with joint 2 missing.
         assert_eq!(ee_count, 600, "{:?}", core.stats);
         assert_eq!(core.stats.ee_withheld, 400);
+    }
+
+    #[test]
+    fn bench_joints_are_estimated_alone_each_like_its_own_model() {
+        // Three copies of the parallel example's first joint on a bench.
+        let mut c = cfg();
+        let template = c.joints[0].clone();
+        c.topology = Topology::Bench;
+        c.geometry = None;
+        c.joints = (0..3)
+            .map(|i| {
+                let mut j = template.clone();
+                j.name = format!("b{i}");
+                j.index = i;
+                j
+            })
+            .collect();
+        let mut core = EstimatorCore::new(&c, CoreTiming::for_rate(1000.0)).unwrap();
+        let JointKind::Lever {
+            restoring,
+            dead_band_rad,
+            ..
+        } = &template.kind
+        else {
+            panic!("the example's joints are lever VSAs")
+        };
+        // The peer: one standalone model per joint, fed the same deflections.
+        let mut peers: Vec<_> = (0..3)
+            .map(|_| RestoringTorqueModel::new((**restoring).clone(), *dead_band_rad))
+            .collect();
+        let defl = |j: u16, tick: u64| 0.02 * (j as f64 + 1.0) * (tick as f64 * 0.01).sin();
+        let mut got = 0;
+        for tick in 1..=500u64 {
+            for j in 0..3u16 {
+                let mut s = sample(0, tick, defl(j, tick));
+                s.joint = j;
+                for o in core.on_sample(s, tick * 1_000_000) {
+                    let Output::Joint(e) = o else {
+                        panic!("a bench publishes joint estimates only: {o:?}")
+                    };
+                    let t = e.t_acq_ns / 1_000_000;
+                    let want = peers[e.joint as usize].update(defl(e.joint, t), 0.009);
+                    assert!(
+                        (e.torque_nm - want).abs() < 1e-12,
+                        "{} vs {want}",
+                        e.torque_nm
+                    );
+                    got += 1;
+                }
+            }
+        }
+        assert_eq!(got, 1500);
+        assert_eq!(core.stats.ee_estimates, 0);
     }
 }

@@ -1,5 +1,9 @@
 //! The joint agent's Zenoh loop: sample at the configured rate on the rig's tick grid, publish
 //! the sample (and, simulated, the truth), apply commands the guard accepts, report the rest.
+//!
+//! One agent serves one joint board: usually one joint, but a board that drives several
+//! joints on one bus (paper B's U2D2 drives all eight servos) serves them all from one
+//! session and one loop — each joint keeps its own guard, keys and liveliness token.
 
 use std::time::Duration;
 
@@ -7,7 +11,7 @@ use rig_config::{JointKind, RigConfig};
 use rig_protocol::{
     JointCommand, JointSample, JointState, JointStatus, Keys, SimTruth, decode, encode,
 };
-use rig_runtime::{NetOverrides, now_ns, open, zenoh_err as z};
+use rig_runtime::{NetOverrides, now_ns, open, publisher, zenoh, zenoh_err as z};
 use thiserror::Error;
 
 use crate::backend::{BackendError, SimBackend, joint_index};
@@ -38,8 +42,8 @@ const SETTLE: Duration = Duration::from_millis(500);
 #[derive(Debug, Clone)]
 pub struct AgentOptions {
     pub cfg: RigConfig,
-    /// The joint's name in the config.
-    pub joint: String,
+    /// The names in the config of the joints this board serves (at least one).
+    pub joints: Vec<String>,
     pub net: NetOverrides,
     /// Start of the simulated world's time [ns since the UNIX epoch].
     pub start_ns: u64,
@@ -48,7 +52,7 @@ pub struct AgentOptions {
     pub duration: Option<Duration>,
 }
 
-/// What the agent did.
+/// What the agent did for one joint.
 #[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
 pub struct AgentReport {
     pub samples: u64,
@@ -84,62 +88,174 @@ fn guard_limits(cfg: &RigConfig, j: usize) -> GuardLimits {
     }
 }
 
-/// Runs the agent until `shutdown` resolves or the duration ends.
-pub async fn run(
-    opts: AgentOptions,
-    shutdown: impl std::future::Future<Output = ()>,
-) -> Result<AgentReport, AgentError> {
-    let cfg = &opts.cfg;
-    let j = joint_index(cfg, &opts.joint)?;
-    let index = j as u16;
-    let mut backend = SimBackend::new(cfg, j, opts.seed.wrapping_add(j as u64))?;
-    let mut guard = JointGuard::new(index, guard_limits(cfg, j), backend.actuator());
-    let keys = Keys::new(&cfg.name)?;
-    let session = open(&cfg.zenoh, &opts.net).await?;
-    let sample_pub = session
-        .declare_publisher(keys.joint_sample(&opts.joint)?)
-        .await
-        .map_err(z)?;
-    let truth_pub = session
-        .declare_publisher(keys.sim_truth(&opts.joint)?)
-        .await
-        .map_err(z)?;
-    let status_key = keys.joint_status(&opts.joint)?;
-    let commands = session
-        .declare_subscriber(keys.joint_command(&opts.joint)?)
-        .await
-        .map_err(z)?;
-    let _token = session
-        .liveliness()
-        .declare_token(keys.alive("joint", &opts.joint)?)
-        .await
-        .map_err(z)?;
+/// One joint of the board: its simulated hardware, guard, keys and counters.
+struct Served {
+    name: String,
+    index: u16,
+    backend: SimBackend,
+    guard: JointGuard,
+    limits: GuardLimits,
+    sample_pub: zenoh::pubsub::Publisher<'static>,
+    truth_pub: zenoh::pubsub::Publisher<'static>,
+    commands: zenoh::pubsub::Subscriber<zenoh::handlers::FifoChannelHandler<zenoh::sample::Sample>>,
+    status_key: String,
+    status_seq: u64,
+    report: AgentReport,
+    _token: zenoh::liveliness::LivelinessToken,
+}
 
-    let period_ns = (1e9 / cfg.rate_hz).round() as u64;
-    let mut report = AgentReport::default();
-    let mut status_seq = 0u64;
-    let mut publish_status = |state: JointState, text: String| {
-        status_seq += 1;
+impl Served {
+    async fn status(
+        &mut self,
+        session: &zenoh::Session,
+        state: JointState,
+        text: String,
+    ) -> Result<(), AgentError> {
+        self.status_seq += 1;
         let msg = JointStatus {
-            joint: index,
-            seq: status_seq,
+            joint: self.index,
+            seq: self.status_seq,
             t_ns: now_ns(),
             state,
             text,
         };
-        (status_key.clone(), encode(&msg))
-    };
-    let (k0, v0) = publish_status(
-        JointState::Ok,
-        format!("joint {} up (sim backend)", opts.joint),
-    );
-    if let Ok(bytes) = v0 {
-        session.put(&k0, bytes).await.map_err(z)?;
+        if let Ok(bytes) = encode(&msg) {
+            session.put(&self.status_key, bytes).await.map_err(z)?;
+        }
+        Ok(())
+    }
+
+    /// Applies the commands that arrived since the last tick, then the watchdog.
+    async fn commands(&mut self, session: &zenoh::Session, now: u64) -> Result<(), AgentError> {
+        while let Ok(Some(s)) = self.commands.try_recv() {
+            let bytes = s.payload().to_bytes();
+            match decode::<JointCommand>(&bytes) {
+                Err(e) => {
+                    self.report.malformed += 1;
+                    eprintln!("rig-joint {}: dropped a malformed command: {e}", self.name);
+                }
+                Ok(cmd) => match self.guard.on_command(&cmd, now, self.backend.actuator()) {
+                    Verdict::Accepted { actuator_goal, .. } => {
+                        self.report.commands_accepted += 1;
+                        if let Some(g) = actuator_goal {
+                            self.backend.set_actuator_goal(g);
+                        }
+                    }
+                    Verdict::Rejected(why) => {
+                        self.report.commands_rejected += 1;
+                        self.status(session, JointState::Rejected, why).await?;
+                    }
+                },
+            }
+        }
+        if let Some(state) = self.guard.on_tick(now, self.backend.actuator()) {
+            self.backend.set_actuator_goal(self.guard.goal());
+            let text = format!(
+                "no command for {:.0} ms: holding the {} where it is",
+                self.limits.watchdog_s * 1e3,
+                self.limits.actuator_name
+            );
+            self.status(session, state, text).await?;
+        }
+        Ok(())
+    }
+
+    /// Reads the joint at grid time `t_acq` and publishes the sample (and the simulated truth).
+    async fn sample(&mut self, t_acq: u64, t_world: f64, dt: f64) -> Result<(), AgentError> {
+        let r = self.backend.read(t_world, dt)?;
+        self.report.samples += 1;
+        let sample = JointSample {
+            joint: self.index,
+            seq: self.report.samples,
+            t_acq_ns: t_acq,
+            motor_rad: r.motor_rad,
+            deflection_rad: r.deflection_rad,
+            pivot_m: r.pivot_m,
+            torque_nm: r.torque_nm,
+            motor_torque_nm: None,
+            stiffness_motor_rad: r.stiffness_motor_rad,
+        };
+        match encode(&sample) {
+            Ok(bytes) => self.sample_pub.put(bytes).await.map_err(z)?,
+            Err(e) => eprintln!("rig-joint {}: sample not sent: {e}", self.name),
+        }
+        if let Some((deflection_rad, torque_nm, link_rad)) = r.truth {
+            let truth = SimTruth {
+                joint: self.index,
+                seq: self.report.samples,
+                t_acq_ns: t_acq,
+                deflection_rad,
+                torque_nm,
+                link_rad,
+            };
+            if let Ok(bytes) = encode(&truth) {
+                self.truth_pub.put(bytes).await.map_err(z)?;
+            }
+        }
+        Ok(())
+    }
+}
+
+/// Runs the agent until `shutdown` resolves or the duration ends; one report per joint, in
+/// the order of `opts.joints`.
+pub async fn run(
+    opts: AgentOptions,
+    shutdown: impl std::future::Future<Output = ()>,
+) -> Result<Vec<AgentReport>, AgentError> {
+    let cfg = &opts.cfg;
+    if opts.joints.is_empty() {
+        return Err(BackendError::UnknownJoint(
+            String::new(),
+            cfg.joints
+                .iter()
+                .map(|j| j.name.as_str())
+                .collect::<Vec<_>>()
+                .join(", "),
+        )
+        .into());
+    }
+    let keys = Keys::new(&cfg.name)?;
+    let session = open(&cfg.zenoh, &opts.net).await?;
+    let mut served = Vec::new();
+    for name in &opts.joints {
+        let j = joint_index(cfg, name)?;
+        let backend = SimBackend::new(cfg, j, opts.seed.wrapping_add(j as u64))?;
+        let limits = guard_limits(cfg, j);
+        let mut joint = Served {
+            name: name.clone(),
+            index: j as u16,
+            guard: JointGuard::new(j as u16, limits, backend.actuator()),
+            backend,
+            limits,
+            sample_pub: publisher(&session, keys.joint_sample(name)?).await?,
+            truth_pub: publisher(&session, keys.sim_truth(name)?).await?,
+            commands: session
+                .declare_subscriber(keys.joint_command(name)?)
+                .await
+                .map_err(z)?,
+            status_key: keys.joint_status(name)?,
+            status_seq: 0,
+            report: AgentReport::default(),
+            _token: session
+                .liveliness()
+                .declare_token(keys.alive("joint", name)?)
+                .await
+                .map_err(z)?,
+        };
+        joint
+            .status(
+                &session,
+                JointState::Ok,
+                format!("joint {name} up (sim backend)"),
+            )
+            .await?;
+        served.push(joint);
     }
 
     // Let gossip link this peer to the rig's other peers (estimator, recorders, viewers)
     // before the first sample: in peer-to-peer mode a sample reaches only peers already linked.
     tokio::time::sleep(SETTLE).await;
+    let period_ns = (1e9 / cfg.rate_hz).round() as u64;
     let mut ticker = tokio::time::interval(Duration::from_nanos(period_ns));
     ticker.set_missed_tick_behavior(tokio::time::MissedTickBehavior::Skip);
     let deadline = opts.duration.map(|d| tokio::time::Instant::now() + d);
@@ -162,88 +278,28 @@ pub async fn run(
             Some(l) => (l + 1).max(tick.saturating_sub(MAX_CATCH_UP)),
             None => tick,
         };
-        report.skipped_ticks += last_tick.map_or(0, |l| first.saturating_sub(l + 1));
-
+        let skipped = last_tick.map_or(0, |l| first.saturating_sub(l + 1));
         // Commands first: they apply from this tick on.
-        while let Ok(Some(s)) = commands.try_recv() {
-            let bytes = s.payload().to_bytes();
-            match decode::<JointCommand>(&bytes) {
-                Err(e) => {
-                    report.malformed += 1;
-                    eprintln!("rig-joint {}: dropped a malformed command: {e}", opts.joint);
-                }
-                Ok(cmd) => match guard.on_command(&cmd, now, backend.actuator()) {
-                    Verdict::Accepted { actuator_goal, .. } => {
-                        report.commands_accepted += 1;
-                        if let Some(g) = actuator_goal {
-                            backend.set_actuator_goal(g);
-                        }
-                    }
-                    Verdict::Rejected(why) => {
-                        report.commands_rejected += 1;
-                        let (k, v) = publish_status(JointState::Rejected, why);
-                        if let Ok(bytes) = v {
-                            session.put(&k, bytes).await.map_err(z)?;
-                        }
-                    }
-                },
-            }
+        for joint in &mut served {
+            joint.report.skipped_ticks += skipped;
+            joint.commands(&session, now).await?;
         }
-        if let Some(state) = guard.on_tick(now, backend.actuator()) {
-            backend.set_actuator_goal(guard.goal());
-            let l = guard_limits(cfg, j);
-            let text = format!(
-                "no command for {:.0} ms: holding the {} where it is",
-                l.watchdog_s * 1e3,
-                l.actuator_name
-            );
-            let (k, v) = publish_status(state, text);
-            if let Ok(bytes) = v {
-                session.put(&k, bytes).await.map_err(z)?;
-            }
-        }
-
         for t in first..=tick {
-            let dt_ticks = last_tick.map_or(1, |l| t.saturating_sub(l));
+            let dt = last_tick.map_or(1, |l| t.saturating_sub(l)) as f64 * period_ns as f64 * 1e-9;
             last_tick = Some(t);
             let t_acq = t * period_ns;
             let t_world = t_acq.saturating_sub(opts.start_ns) as f64 * 1e-9;
-            let r = backend.read(t_world, dt_ticks as f64 * period_ns as f64 * 1e-9)?;
-            report.samples += 1;
-            let sample = JointSample {
-                joint: index,
-                seq: report.samples,
-                t_acq_ns: t_acq,
-                motor_rad: r.motor_rad,
-                deflection_rad: r.deflection_rad,
-                pivot_m: r.pivot_m,
-                torque_nm: r.torque_nm,
-                motor_torque_nm: None,
-                stiffness_motor_rad: r.stiffness_motor_rad,
-            };
-            match encode(&sample) {
-                Ok(bytes) => sample_pub.put(bytes).await.map_err(z)?,
-                Err(e) => eprintln!("rig-joint {}: sample not sent: {e}", opts.joint),
-            }
-            if let Some((deflection_rad, torque_nm, link_rad)) = r.truth {
-                let truth = SimTruth {
-                    joint: index,
-                    seq: report.samples,
-                    t_acq_ns: t_acq,
-                    deflection_rad,
-                    torque_nm,
-                    link_rad,
-                };
-                if let Ok(bytes) = encode(&truth) {
-                    truth_pub.put(bytes).await.map_err(z)?;
-                }
+            for joint in &mut served {
+                joint.sample(t_acq, t_world, dt).await?;
             }
         }
     }
-    let (k, v) = publish_status(JointState::Stopped, format!("joint {} stopped", opts.joint));
-    if let Ok(bytes) = v {
-        session.put(&k, bytes).await.map_err(z)?;
+    let mut reports = Vec::new();
+    for mut joint in served {
+        let text = format!("joint {} stopped", joint.name);
+        joint.status(&session, JointState::Stopped, text).await?;
+        reports.push(joint.report);
     }
     session.close().await.map_err(z)?;
-    Ok(report)
+    Ok(reports)
 }

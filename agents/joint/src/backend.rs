@@ -112,7 +112,7 @@ impl SimBackend {
                 .map_err(|e| world(e.to_string()))?;
                 Sim::Robot { world: w, j, plant }
             }
-            (JointKind::Lever { vsa, .. }, Topology::Single) => {
+            (JointKind::Lever { vsa, .. }, Topology::Single | Topology::Bench) => {
                 let d0 = 0.5 * (vsa.d_min + vsa.d_max);
                 let plant = LeverJointPlant::new(
                     *vsa,

@@ -16,9 +16,10 @@ struct Args {
     /// Rig config (TOML)
     #[arg(long, value_name = "FILE")]
     config: PathBuf,
-    /// The joint's name in the config, e.g. j1
-    #[arg(long)]
-    joint: String,
+    /// The joint's name in the config, e.g. j1. A board that drives several joints serves
+    /// them all from one agent: repeat the flag or list them, e.g. --joint j1,j2
+    #[arg(long, required = true, value_delimiter = ',', value_name = "NAME")]
+    joint: Vec<String>,
     /// Where readings come from: sim (dynamixel arrives with the hardware issue)
     #[arg(long, default_value = "sim")]
     backend: String,
@@ -57,7 +58,7 @@ fn main() -> ExitCode {
     };
     let opts = AgentOptions {
         cfg,
-        joint: a.joint,
+        joints: a.joint.clone(),
         net: NetOverrides {
             listen: a.listen,
             connect: a.connect,
@@ -84,11 +85,17 @@ fn main() -> ExitCode {
         let _ = tokio::signal::ctrl_c().await;
     }));
     match result {
-        Ok(r) => {
-            eprintln!(
-                "rig-joint: {} samples, {} skipped ticks, {} commands accepted, {} rejected, {} malformed",
-                r.samples, r.skipped_ticks, r.commands_accepted, r.commands_rejected, r.malformed
-            );
+        Ok(reports) => {
+            for (name, r) in a.joint.iter().zip(reports) {
+                eprintln!(
+                    "rig-joint {name}: {} samples, {} skipped ticks, {} commands accepted, {} rejected, {} malformed",
+                    r.samples,
+                    r.skipped_ticks,
+                    r.commands_accepted,
+                    r.commands_rejected,
+                    r.malformed
+                );
+            }
             ExitCode::SUCCESS
         }
         Err(e) => {

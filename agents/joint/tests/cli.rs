@@ -53,3 +53,25 @@ fn runs_for_a_duration_and_reports() {
     assert_eq!(code, Some(0), "{err}");
     assert!(err.contains("samples"), "{err}");
 }
+
+#[test]
+fn one_board_serves_several_joints() {
+    let (code, err) = run(&[
+        "--config",
+        &example(),
+        "--joint",
+        "j1,j3",
+        "--duration",
+        "0.5",
+    ]);
+    assert_eq!(code, Some(0), "{err}");
+    for j in ["j1", "j3"] {
+        let line = err
+            .lines()
+            .find(|l| l.starts_with(&format!("rig-joint {j}: ")))
+            .unwrap_or_else(|| panic!("no report for {j}: {err}"));
+        let samples: u64 = line.split_whitespace().nth(2).unwrap().parse().unwrap();
+        // 0.5 s at 1 kHz, the timer's first wake-up and last tick give or take.
+        assert!((400..=510).contains(&samples), "{line}");
+    }
+}

@@ -11,10 +11,13 @@
 //!   `rig_model::allocation` (bounded least squares, tie-break) and `rig_model::lever`
 //!   (stiffness → pivot position);
 //! - `rig sim` → [`sim`] → `rig_sim::scenario` (plants, sensors, undeclared effects);
+//! - `rig bench` → [`bench`]: raw Zenoh round trip, the estimator host's latency and
+//!   throughput, with the same agents and host `rig up` runs;
 //! - `rig reproduce` → [`reproduce`] → `rig_sim::reproduce` (the papers' experiments); the
 //!   end-effector force there comes from `rig_model::estimator::RobotEstimator`.
 
 mod allocate;
+mod bench;
 mod error;
 mod hosts;
 mod progress;
@@ -72,6 +75,9 @@ enum Command {
     Sim(sim::Args),
     /// Reproduce a paper's experiments in simulation and print our numbers beside its own.
     Reproduce(reproduce::Args),
+    /// Measure the rig on this machine: Zenoh round trip and sample→estimate latency
+    /// (`latency`), or how many joints one estimator host keeps up with (`throughput`).
+    Bench(bench::Args),
 }
 
 fn main() -> ExitCode {
@@ -86,6 +92,7 @@ fn main() -> ExitCode {
         Command::Allocate(a) => allocate::run(&a),
         Command::Sim(a) => sim::run(&a),
         Command::Reproduce(a) => reproduce::run(&a),
+        Command::Bench(a) => bench::run(&a),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,

@@ -11,7 +11,7 @@ use std::path::PathBuf;
 use std::time::Duration;
 
 use rig_allocator::edge::{AllocatorOptions, run as run_allocator};
-use rig_config::{RigConfig, Topology};
+use rig_config::RigConfig;
 use rig_estimator::edge::{EstimatorOptions, run as run_estimator};
 use rig_joint::agent::{AgentOptions, run as run_joint};
 use rig_joint::backend::{WORLD_STROKE_M, WORLD_STROKE_S};
@@ -121,7 +121,7 @@ async fn up(cfg: RigConfig, args: &Args) -> Result<(), CliError> {
     for j in &cfg.joints {
         let o = AgentOptions {
             cfg: cfg.clone(),
-            joint: j.name.clone(),
+            joints: vec![j.name.clone()],
             net: peer.clone(),
             start_ns,
             seed: args.seed,
@@ -162,7 +162,7 @@ async fn up(cfg: RigConfig, args: &Args) -> Result<(), CliError> {
             d.as_secs_f64()
         ))
     );
-    if cfg.topology != Topology::Single {
+    if cfg.topology.is_robot() {
         // A continuous decoupled goal for the allocator, once everyone is up.
         tokio::time::sleep(Duration::from_millis(500)).await;
         let home = cfg.geometry.map_or((0.0, 0.0), |g| g.home);
@@ -204,12 +204,11 @@ async fn up(cfg: RigConfig, args: &Args) -> Result<(), CliError> {
     let _ = stop_tx.send(true);
     let mut joint_reports = Vec::new();
     for (name, h) in joints {
-        joint_reports.push((
-            name,
-            h.await
-                .map_err(|e| err(e.to_string()))?
-                .map_err(|e| err(e.to_string()))?,
-        ));
+        let reports = h
+            .await
+            .map_err(|e| err(e.to_string()))?
+            .map_err(|e| err(e.to_string()))?;
+        joint_reports.extend(reports.into_iter().map(|r| (name.clone(), r)));
     }
     let est_report = est
         .await

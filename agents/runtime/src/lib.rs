@@ -99,6 +99,18 @@ pub fn zenoh_config(z: &ZenohConfig, net: &NetOverrides) -> Result<zenoh::Config
     Ok(c)
 }
 
+/// Declares a publisher on `key` after declaring the key expression itself, so peers map it
+/// to a numeric id and cache its route. Without that, every message on a concrete key that
+/// only matches a wildcard subscription is routed by matching the key against every known
+/// resource — `rig bench throughput` found that routing to be 30 % of the CPU at 64 joints.
+pub async fn publisher(
+    session: &zenoh::Session,
+    key: String,
+) -> Result<zenoh::pubsub::Publisher<'static>, RuntimeError> {
+    let declared = session.declare_keyexpr(key).await.map_err(zenoh_err)?;
+    session.declare_publisher(declared).await.map_err(zenoh_err)
+}
+
 /// Opens a session.
 pub async fn open(z: &ZenohConfig, net: &NetOverrides) -> Result<zenoh::Session, RuntimeError> {
     let config = zenoh_config(z, net)?;

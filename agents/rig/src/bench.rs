@@ -1,0 +1,553 @@
+//! `rig bench`: how fast the rig is on this machine, measured, never assumed.
+//!
+//! - `rig bench latency`: first the raw Zenoh round trip between two sessions on loopback
+//!   (ping–pong with a sample-sized payload, as Zenoh's own `z_ping`/`z_pong`), then the
+//!   simulated rig (one agent per joint, the estimator host, an observer of the estimates)
+//!   and the estimator host's latency: from the Zenoh timestamp of the sample that completed
+//!   a tick (when its agent published it) to the moment every estimate of that tick has been
+//!   published — one Zenoh hop plus the estimation. The target is that the rig adds at most
+//!   50 µs to half a round trip.
+//! - `rig bench throughput --joints N`: one joint board serving N simulated joints at the
+//!   rate (a bench topology: independent lever joints) against one estimator host; samples
+//!   per second received, samples lost, ticks the board could not keep up with.
+
+use std::sync::Arc;
+use std::sync::atomic::{AtomicU64, Ordering};
+use std::time::{Duration, Instant};
+
+use rig_config::{RigConfig, Topology};
+use rig_estimator::edge::{EstimatorOptions, EstimatorReport, run as run_estimator};
+use rig_joint::agent::{AgentOptions, AgentReport, run as run_joint};
+use rig_protocol::{JointSample, encode};
+use rig_runtime::zenoh::{self, Wait};
+use rig_runtime::{NetOverrides, now_ns, open, zenoh_config};
+use serde::Serialize;
+use tokio::sync::watch;
+
+use crate::error::CliError;
+
+#[derive(Debug, clap::Args)]
+pub struct Args {
+    #[command(subcommand)]
+    what: What,
+}
+
+#[derive(Debug, clap::Subcommand)]
+enum What {
+    /// Raw Zenoh round trip on this machine, then the rig's sample→estimate latency at the
+    /// config's joints and rate (default: the parallel example, 4 joints × 1 kHz).
+    Latency(LatencyArgs),
+    /// N simulated joints at the rate on one board against one estimator host.
+    Throughput(ThroughputArgs),
+}
+
+#[derive(Debug, clap::Args)]
+struct LatencyArgs {
+    /// Rig config (default: the example parallel robot)
+    #[arg(long, value_name = "FILE")]
+    config: Option<std::path::PathBuf>,
+    /// How long the rig runs [s]
+    #[arg(long, default_value_t = 60.0, value_name = "SECONDS")]
+    duration: f64,
+    /// How the joints are served: `one` board for all (paper B's wiring: one bus drives
+    /// every servo) or a board `per-joint` (as `rig up` runs them)
+    #[arg(long, value_enum, default_value_t = Boards::One)]
+    boards: Boards,
+    /// Round trips timed for the raw Zenoh figure (after 500 warm-up ones)
+    #[arg(long, default_value_t = 10_000)]
+    pings: usize,
+    /// Print one JSON object instead of the table
+    #[arg(long)]
+    json: bool,
+}
+
+#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum, Serialize)]
+#[serde(rename_all = "kebab-case")]
+enum Boards {
+    One,
+    PerJoint,
+}
+
+#[derive(Debug, clap::Args)]
+struct ThroughputArgs {
+    /// Simulated joints on the board (1 to 64)
+    #[arg(long, default_value_t = 64)]
+    joints: usize,
+    /// Sample rate of every joint [Hz]
+    #[arg(long, default_value_t = 1000.0, value_name = "HZ")]
+    rate_hz: f64,
+    /// How long the board runs [s]
+    #[arg(long, default_value_t = 10.0, value_name = "SECONDS")]
+    duration: f64,
+    /// Print one JSON object instead of the table
+    #[arg(long)]
+    json: bool,
+}
+
+pub fn run(args: &Args) -> Result<(), CliError> {
+    match &args.what {
+        What::Latency(a) => latency(a),
+        What::Throughput(a) => throughput(a),
+    }
+}
+
+/// Median and 99th percentile [µs].
+#[derive(Debug, Clone, Copy, Serialize)]
+struct Percentiles {
+    p50: u64,
+    p99: u64,
+}
+
+impl Percentiles {
+    fn of(mut v: Vec<u64>) -> Self {
+        if v.is_empty() {
+            return Self { p50: 0, p99: 0 };
+        }
+        v.sort_unstable();
+        let at = |q: f64| v[((v.len() - 1) as f64 * q).round() as usize];
+        Self {
+            p50: at(0.5),
+            p99: at(0.99),
+        }
+    }
+}
+
+#[derive(Debug, Serialize)]
+struct LatencyReport {
+    zenoh_rtt_us: Percentiles,
+    rig_latency_us: Percentiles,
+    /// Worst rig latency seen [µs].
+    rig_latency_max_us: u64,
+    /// Latency to the last estimate of the tick (each joint's) [µs].
+    rig_all_published_us: Percentiles,
+    /// The transport part of the rig latency: the completing sample's publication to its
+    /// arrival in the estimator host [µs].
+    rig_transport_us: Percentiles,
+    /// Samples the joint agents published, and those the estimator never received.
+    sent: u64,
+    lost: u64,
+    joints: usize,
+    boards: Boards,
+    rate_hz: f64,
+    duration_s: f64,
+    /// Estimates the observer session received.
+    estimates_observed: u64,
+    /// Ticks the agents skipped because their timer woke too late.
+    skipped_ticks: u64,
+}
+
+#[derive(Debug, Serialize)]
+struct ThroughputReport {
+    joints: usize,
+    rate_hz: f64,
+    /// Samples the estimator received per second of the run.
+    samples_per_s: f64,
+    /// Samples published and never received by the estimator.
+    lost: u64,
+    sent: u64,
+    /// Ticks the board skipped because it could not keep up.
+    skipped_ticks: u64,
+    /// Estimates the estimator published per second.
+    estimates_per_s: f64,
+    /// Sample age at the estimator (now − acquisition time) [µs].
+    age_us: Percentiles,
+    /// The estimator host's sample→estimate latency [µs] (see `rig bench latency`).
+    latency_us: Percentiles,
+    duration_s: f64,
+}
+
+fn free_loopback_endpoint() -> Result<String, CliError> {
+    let l = std::net::TcpListener::bind("127.0.0.1:0")?;
+    Ok(format!("tcp/127.0.0.1:{}", l.local_addr()?.port()))
+}
+
+fn zerr<E: std::fmt::Display>(e: E) -> CliError {
+    CliError::Unsupported(format!("zenoh: {e}"))
+}
+
+/// Raw round trips between two Zenoh sessions on loopback, blocking API, `pings` timed.
+fn zenoh_rtt(cfg: &RigConfig, pings: usize, payload: Vec<u8>) -> Result<Vec<u64>, CliError> {
+    let hub = free_loopback_endpoint()?;
+    let config = |net: NetOverrides| zenoh_config(&cfg.zenoh, &net).map_err(zerr);
+    let a = zenoh::open(config(NetOverrides {
+        listen: vec![hub.clone()],
+        connect: vec![],
+    })?)
+    .wait()
+    .map_err(zerr)?;
+    let b = zenoh::open(config(NetOverrides {
+        listen: vec![],
+        connect: vec![hub],
+    })?)
+    .wait()
+    .map_err(zerr)?;
+    let prefix = format!("rig/{}/bench/{}", cfg.name, std::process::id());
+    let pong = b
+        .declare_publisher(format!("{prefix}/pong"))
+        .congestion_control(zenoh::qos::CongestionControl::Block)
+        .wait()
+        .map_err(zerr)?;
+    let _echo = b
+        .declare_subscriber(format!("{prefix}/ping"))
+        .callback(move |s| {
+            let _ = pong.put(s.payload().clone()).wait();
+        })
+        .wait()
+        .map_err(zerr)?;
+    let replies = a
+        .declare_subscriber(format!("{prefix}/pong"))
+        .wait()
+        .map_err(zerr)?;
+    let ping = a
+        .declare_publisher(format!("{prefix}/ping"))
+        .congestion_control(zenoh::qos::CongestionControl::Block)
+        .wait()
+        .map_err(zerr)?;
+    // Until the first echo comes back the peers are not linked yet.
+    let linked = Instant::now();
+    loop {
+        ping.put(payload.clone()).wait().map_err(zerr)?;
+        if replies
+            .recv_timeout(Duration::from_millis(50))
+            .map_err(zerr)?
+            .is_some()
+        {
+            break;
+        }
+        if linked.elapsed() > Duration::from_secs(10) {
+            return Err(CliError::Unsupported(
+                "zenoh: two sessions on loopback did not link within 10 s".into(),
+            ));
+        }
+    }
+    while replies.try_recv().map_err(zerr)?.is_some() {}
+    let mut rtt = Vec::with_capacity(pings);
+    for i in 0..pings + 500 {
+        let t0 = Instant::now();
+        ping.put(payload.clone()).wait().map_err(zerr)?;
+        match replies.recv_timeout(Duration::from_secs(1)).map_err(zerr)? {
+            Some(_) if i >= 500 => rtt.push(t0.elapsed().as_micros() as u64),
+            Some(_) => {}
+            None => {
+                return Err(CliError::Unsupported(
+                    "zenoh: a ping got no echo within 1 s".into(),
+                ));
+            }
+        }
+    }
+    drop(ping);
+    let _ = a.close().wait();
+    let _ = b.close().wait();
+    Ok(rtt)
+}
+
+/// What a rig run produced.
+struct RigRun {
+    agents: Vec<AgentReport>,
+    estimator: EstimatorReport,
+    observed: u64,
+}
+
+/// Runs the estimator host (the hub) and the joint boards for `duration`; an observer
+/// session counts the estimates. Each board is a list of joints served by one agent.
+fn run_rig(
+    cfg: &RigConfig,
+    boards: Vec<Vec<String>>,
+    duration: Duration,
+    label: &str,
+) -> Result<RigRun, CliError> {
+    let rt = tokio::runtime::Builder::new_multi_thread()
+        .worker_threads(2)
+        .enable_all()
+        .build()?;
+    let err = |e: String| CliError::Unsupported(e);
+    rt.block_on(async {
+        let hub = free_loopback_endpoint()?;
+        let (stop_est_tx, stop_est_rx) = watch::channel(false);
+        let stopped = |mut rx: watch::Receiver<bool>| async move {
+            let _ = rx.wait_for(|s| *s).await;
+        };
+        let est = tokio::spawn(run_estimator(
+            EstimatorOptions {
+                cfg: cfg.clone(),
+                net: NetOverrides {
+                    listen: vec![hub.clone()],
+                    connect: vec![],
+                },
+                duration: None,
+            },
+            stopped(stop_est_rx),
+        ));
+        tokio::time::sleep(Duration::from_millis(300)).await;
+        let peer = NetOverrides {
+            listen: vec![],
+            connect: vec![hub.clone()],
+        };
+        // An observer of every estimate, as a viewer or a recorder would be.
+        let observer = open(&cfg.zenoh, &peer)
+            .await
+            .map_err(|e| err(e.to_string()))?;
+        let observed = Arc::new(AtomicU64::new(0));
+        let keys = rig_protocol::Keys::new(&cfg.name).map_err(|e| err(e.to_string()))?;
+        let mut estimate_keys = vec![keys.ee_estimate()];
+        for j in &cfg.joints {
+            estimate_keys.push(
+                keys.joint_estimate(&j.name)
+                    .map_err(|e| err(e.to_string()))?,
+            );
+        }
+        let mut subs = Vec::new();
+        for key in estimate_keys {
+            let counter = observed.clone();
+            subs.push(
+                observer
+                    .declare_subscriber(key)
+                    .callback(move |_| {
+                        counter.fetch_add(1, Ordering::Relaxed);
+                    })
+                    .await
+                    .map_err(zerr)?,
+            );
+        }
+        let start_ns = now_ns();
+        let mut handles = Vec::new();
+        for joints in boards {
+            handles.push(tokio::spawn(run_joint(
+                AgentOptions {
+                    cfg: cfg.clone(),
+                    joints,
+                    net: peer.clone(),
+                    start_ns,
+                    seed: 1,
+                    duration: Some(duration),
+                },
+                std::future::pending::<()>(),
+            )));
+        }
+        let pb = crate::progress::bar(duration.as_secs().max(1), label);
+        let t0 = Instant::now();
+        while handles.iter().any(|h| !h.is_finished()) {
+            tokio::time::sleep(Duration::from_millis(200)).await;
+            pb.set_position(t0.elapsed().as_secs().min(duration.as_secs()));
+        }
+        pb.finish_and_clear();
+        let mut agents = Vec::new();
+        for h in handles {
+            agents.extend(
+                h.await
+                    .map_err(|e| err(e.to_string()))?
+                    .map_err(|e| err(e.to_string()))?,
+            );
+        }
+        // Let the last samples arrive before the estimator stops.
+        tokio::time::sleep(Duration::from_millis(500)).await;
+        let _ = stop_est_tx.send(true);
+        let estimator = est
+            .await
+            .map_err(|e| err(e.to_string()))?
+            .map_err(|e| err(e.to_string()))?;
+        let _ = observer.close().await;
+        Ok(RigRun {
+            agents,
+            estimator,
+            observed: observed.load(Ordering::Relaxed),
+        })
+    })
+}
+
+fn positive_duration(s: f64) -> Result<Duration, CliError> {
+    if s.is_finite() && s > 0.0 {
+        Ok(Duration::from_secs_f64(s))
+    } else {
+        Err(CliError::Invalid(format!(
+            "--duration: {s} s is not a positive number of seconds"
+        )))
+    }
+}
+
+fn latency(a: &LatencyArgs) -> Result<(), CliError> {
+    let duration = positive_duration(a.duration)?;
+    if a.pings == 0 {
+        return Err(CliError::Invalid("--pings: at least one round trip".into()));
+    }
+    let cfg = match &a.config {
+        Some(p) => rig_config::load(p)?,
+        None => rig_config::examples::load("parallel")?,
+    };
+    // The ping payload is a real encoded sample, so both figures move the same bytes.
+    let payload = encode(&JointSample {
+        joint: 0,
+        seq: 1,
+        t_acq_ns: now_ns(),
+        motor_rad: 0.1,
+        deflection_rad: 0.01,
+        pivot_m: Some(0.01),
+        torque_nm: None,
+        motor_torque_nm: None,
+        stiffness_motor_rad: None,
+    })
+    .map_err(|e| CliError::Unsupported(e.to_string()))?;
+    eprintln!(
+        "rig bench latency: {} raw Zenoh round trips, then the rig ({} joints × {} Hz) for {:.0} s",
+        a.pings,
+        cfg.joints.len(),
+        cfg.rate_hz,
+        duration.as_secs_f64()
+    );
+    let rtt = zenoh_rtt(&cfg, a.pings, payload)?;
+    let names = cfg.joints.iter().map(|j| j.name.clone());
+    let boards = match a.boards {
+        Boards::One => vec![names.collect()],
+        Boards::PerJoint => names.map(|n| vec![n]).collect(),
+    };
+    let r = run_rig(&cfg, boards, duration, "rig running")?;
+    let sent: u64 = r.agents.iter().map(|a| a.samples).sum();
+    let received = r.estimator.core.samples;
+    let report = LatencyReport {
+        zenoh_rtt_us: Percentiles::of(rtt),
+        rig_latency_us: Percentiles {
+            p50: r.estimator.latency_us[0],
+            p99: r.estimator.latency_us[1],
+        },
+        rig_latency_max_us: r.estimator.latency_us[2],
+        rig_all_published_us: Percentiles {
+            p50: r.estimator.all_published_us[0],
+            p99: r.estimator.all_published_us[1],
+        },
+        rig_transport_us: Percentiles {
+            p50: r.estimator.transport_us[0],
+            p99: r.estimator.transport_us[1],
+        },
+        sent,
+        lost: sent.saturating_sub(received),
+        joints: cfg.joints.len(),
+        boards: a.boards,
+        rate_hz: cfg.rate_hz,
+        duration_s: duration.as_secs_f64(),
+        estimates_observed: r.observed,
+        skipped_ticks: r.agents.iter().map(|a| a.skipped_ticks).sum(),
+    };
+    if a.json {
+        println!("{}", serde_json::to_string_pretty(&report).map_err(io)?);
+    } else {
+        let half = report.zenoh_rtt_us.p50 as f64 / 2.0;
+        println!(
+            "raw Zenoh round trip      p50 {:>6} µs   p99 {:>6} µs",
+            report.zenoh_rtt_us.p50, report.zenoh_rtt_us.p99
+        );
+        println!(
+            "rig sample→estimate       p50 {:>6} µs   p99 {:>6} µs   max {} µs",
+            report.rig_latency_us.p50, report.rig_latency_us.p99, report.rig_latency_max_us
+        );
+        println!(
+            "  of which transport      p50 {:>6} µs   p99 {:>6} µs",
+            report.rig_transport_us.p50, report.rig_transport_us.p99
+        );
+        println!(
+            "  every estimate out      p50 {:>6} µs   p99 {:>6} µs",
+            report.rig_all_published_us.p50, report.rig_all_published_us.p99
+        );
+        println!(
+            "rig p50 − half round trip {:>+6.0} µs (target ≤ +50 µs); p99 target < 1000 µs",
+            report.rig_latency_us.p50 as f64 - half
+        );
+        println!(
+            "samples sent {}, lost {}; {} estimates observed; {} ticks skipped by the agents",
+            report.sent, report.lost, report.estimates_observed, report.skipped_ticks
+        );
+    }
+    Ok(())
+}
+
+fn io(e: serde_json::Error) -> CliError {
+    CliError::Io(std::io::Error::other(e))
+}
+
+/// A bench rig of `n` copies of the parallel example's first joint.
+fn bench_config(n: usize, rate_hz: f64) -> Result<RigConfig, CliError> {
+    if !(1..=rig_config::MAX_BENCH_JOINTS).contains(&n) {
+        return Err(CliError::Invalid(format!(
+            "--joints: {n} is outside 1 to {}",
+            rig_config::MAX_BENCH_JOINTS
+        )));
+    }
+    if !(rate_hz.is_finite() && (1.0..=20_000.0).contains(&rate_hz)) {
+        return Err(CliError::Invalid(format!(
+            "--rate-hz: {rate_hz} Hz is outside [1, 20000] Hz"
+        )));
+    }
+    let mut cfg = rig_config::examples::load("parallel")?;
+    let template = cfg.joints[0].clone();
+    cfg.name = "bench".into();
+    cfg.topology = Topology::Bench;
+    cfg.geometry = None;
+    cfg.rate_hz = rate_hz;
+    cfg.joints = (0..n)
+        .map(|i| {
+            let mut j = template.clone();
+            j.name = format!("b{i:02}");
+            j.index = i;
+            j.servo = None;
+            j
+        })
+        .collect();
+    Ok(cfg)
+}
+
+fn throughput(a: &ThroughputArgs) -> Result<(), CliError> {
+    let duration = positive_duration(a.duration)?;
+    let cfg = bench_config(a.joints, a.rate_hz)?;
+    eprintln!(
+        "rig bench throughput: {} joints × {} Hz on one board against one estimator host, {:.0} s",
+        a.joints,
+        a.rate_hz,
+        duration.as_secs_f64()
+    );
+    let board: Vec<String> = cfg.joints.iter().map(|j| j.name.clone()).collect();
+    let r = run_rig(&cfg, vec![board], duration, "board running")?;
+    let sent: u64 = r.agents.iter().map(|a| a.samples).sum();
+    let e = &r.estimator;
+    let secs = (e.window_ns as f64 * 1e-9).max(1e-9);
+    let report = ThroughputReport {
+        joints: a.joints,
+        rate_hz: a.rate_hz,
+        samples_per_s: e.core.samples as f64 / secs,
+        lost: sent.saturating_sub(e.core.samples),
+        sent,
+        // One board: every joint it serves skips the same ticks.
+        skipped_ticks: r.agents.first().map_or(0, |a| a.skipped_ticks),
+        estimates_per_s: e.core.joint_estimates as f64 / secs,
+        age_us: Percentiles {
+            p50: e.age_us[0],
+            p99: e.age_us[1],
+        },
+        latency_us: Percentiles {
+            p50: e.latency_us[0],
+            p99: e.latency_us[1],
+        },
+        duration_s: duration.as_secs_f64(),
+    };
+    if a.json {
+        println!("{}", serde_json::to_string_pretty(&report).map_err(io)?);
+    } else {
+        println!(
+            "{} joints × {} Hz: {:.0} samples/s received (of {:.0} wanted), {} lost of {} sent, {} ticks skipped",
+            report.joints,
+            report.rate_hz,
+            report.samples_per_s,
+            report.joints as f64 * report.rate_hz,
+            report.lost,
+            report.sent,
+            report.skipped_ticks
+        );
+        println!(
+            "estimates {:.0}/s; sample age at the estimator p50 {} µs, p99 {} µs; sample→estimate p50 {} µs, p99 {} µs",
+            report.estimates_per_s,
+            report.age_us.p50,
+            report.age_us.p99,
+            report.latency_us.p50,
+            report.latency_us.p99
+        );
+    }
+    Ok(())
+}
