@@ -107,6 +107,11 @@ impl Keys {
         format!("{}/stiffness/goal", self.prefix)
     }
 
+    /// Where the allocator publishes every allocation it computes (queries and goals).
+    pub fn allocation_result(&self) -> String {
+        format!("{}/allocation/result", self.prefix)
+    }
+
     pub fn alive(&self, role: &str, id: &str) -> Result<String, KeyError> {
         check_name("role", role)?;
         check_name("id", id)?;
@@ -140,6 +145,9 @@ pub enum Topic {
         rig: String,
     },
     StiffnessGoal {
+        rig: String,
+    },
+    AllocationResult {
         rig: String,
     },
     Alive {
@@ -193,6 +201,7 @@ impl Topic {
             },
             ["allocate"] => Topic::Allocate { rig: r },
             ["stiffness", "goal"] => Topic::StiffnessGoal { rig: r },
+            ["allocation", "result"] => Topic::AllocationResult { rig: r },
             ["alive", role, id] => Topic::Alive {
                 rig: r,
                 role: name("role", role)?,
@@ -254,6 +263,12 @@ mod tests {
             (
                 k.stiffness_goal(),
                 Topic::StiffnessGoal {
+                    rig: "lab-1".into(),
+                },
+            ),
+            (
+                k.allocation_result(),
+                Topic::AllocationResult {
                     rig: "lab-1".into(),
                 },
             ),

@@ -802,6 +802,9 @@ pub struct SimTruth {
     pub torque_nm: f64,
     /// True link angle [rad].
     pub link_rad: f64,
+    /// True joint stiffness ∂τ/∂φ of the simulated spring at the true pivot (elastic part,
+    /// at rest deflection for a lever joint) [N·m/rad].
+    pub stiffness_nm_per_rad: f64,
 }
 
 impl Message for SimTruth {
@@ -817,7 +820,8 @@ impl Message for SimTruth {
             std::f64::consts::PI,
         )?;
         c.within("torque_nm", self.torque_nm, -MAX_TORQUE_NM, MAX_TORQUE_NM)?;
-        c.within("link_rad", self.link_rad, -1e6, 1e6)
+        c.within("link_rad", self.link_rad, -1e6, 1e6)?;
+        c.within("stiffness_nm_per_rad", self.stiffness_nm_per_rad, 0.0, 1e7)
     }
 
     fn write_body(&self, w: &mut Writer) {
@@ -827,6 +831,7 @@ impl Message for SimTruth {
         w.f64(self.deflection_rad);
         w.f64(self.torque_nm);
         w.f64(self.link_rad);
+        w.f64(self.stiffness_nm_per_rad);
     }
 
     fn read_body(r: &mut Reader<'_>) -> Result<Self, DecodeError> {
@@ -837,6 +842,7 @@ impl Message for SimTruth {
             deflection_rad: r.f64("deflection_rad")?,
             torque_nm: r.f64("torque_nm")?,
             link_rad: r.f64("link_rad")?,
+            stiffness_nm_per_rad: r.f64("stiffness_nm_per_rad")?,
         })
     }
 }

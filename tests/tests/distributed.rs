@@ -459,6 +459,28 @@ fn a_recording_replays_offline_to_the_same_estimates_and_survives_a_killed_recor
     // The killed recorder's file still reads back to its last flushed record.
     let (v, _) = replay(&killed);
     assert!(v["samples"].as_u64().unwrap() > 1000, "{v}");
+    // `rig replay --viz` draws the recording: the same entities as live.
+    let rrd = dir.join("replay.rrd");
+    let o = Command::new(bin("rig"))
+        .args(["replay", "--save"])
+        .arg(&rrd)
+        .arg(&full)
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let rows = rrd_rows(&rrd);
+    for (entity, archetype) in [
+        ("/force/estimate/x", "Scalars"),
+        ("/force/truth/x", "Scalars"),
+        ("/joints/j1/loop/model", "LineStrips2D"),
+        ("/robot/links", "LineStrips2D"),
+    ] {
+        let n = rows
+            .get(&(entity.to_string(), archetype.to_string()))
+            .copied()
+            .unwrap_or(0);
+        assert!(n > 5, "{entity}: {n} rows of {archetype}");
+    }
     std::fs::remove_dir_all(&dir).ok();
 }
 
@@ -524,4 +546,158 @@ fn bench_latency_and_throughput_report_consistent_figures() {
     assert!(u(&v, &["lost"]) * 100 <= sent, "more than 1 % lost: {v}");
     let rate = v["samples_per_s"].as_f64().unwrap();
     assert!((7_600.0..=8_400.0).contains(&rate), "{v}");
+}
+
+/// The `rerun` CLI of the version the rig's SDK writes (installed by `.ci/run`).
+fn rerun_cli() -> Command {
+    let ok = Command::new("rerun")
+        .arg("--version")
+        .output()
+        .map(|o| String::from_utf8_lossy(&o.stdout).contains(" 0.36."))
+        .unwrap_or(false);
+    assert!(
+        ok,
+        "the rerun CLI 0.36.x is needed: pip install rerun-sdk==0.36.3 (.ci/run installs it)"
+    );
+    Command::new("rerun")
+}
+
+/// Rows of data per (entity, archetype) in an .rrd, read with `rerun rrd print`.
+fn rrd_rows(path: &Path) -> BTreeMap<(String, String), u64> {
+    let o = rerun_cli()
+        .args(["rrd", "print"])
+        .arg(path)
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let mut rows = BTreeMap::new();
+    // "Chunk(…) with N rows (… B) - /entity/path - data columns: [Archetype:component …"
+    for line in String::from_utf8_lossy(&o.stdout).lines() {
+        let Some(rest) = line.strip_prefix("Chunk(") else {
+            continue;
+        };
+        let n: u64 = rest
+            .split(" with ")
+            .nth(1)
+            .and_then(|s| s.split(' ').next())
+            .and_then(|s| s.parse().ok())
+            .unwrap();
+        let mut parts = rest.split(" - ");
+        let entity = parts.nth(1).unwrap().to_string();
+        let columns = parts.next().unwrap_or_default();
+        let archetype = columns
+            .trim_start_matches("data columns: [")
+            .split(':')
+            .next()
+            .unwrap()
+            .to_string();
+        *rows.entry((entity, archetype)).or_default() += n;
+    }
+    rows
+}
+
+fn viz_dir(name: &str) -> PathBuf {
+    let dir = std::env::temp_dir().join(format!("rig-viz-{name}-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    dir
+}
+
+#[test]
+fn rig_up_saves_a_view_that_rerun_verifies_with_every_entity() {
+    let _one_at_a_time = serial();
+    let dir = viz_dir("up");
+    let rrd = dir.join("run.rrd");
+    let o = Command::new(bin("rig"))
+        .args(["up", "--duration", "3", "--save"])
+        .arg(&rrd)
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let v = rerun_cli()
+        .args(["rrd", "verify"])
+        .arg(&rrd)
+        .output()
+        .unwrap();
+    assert!(
+        v.status.success(),
+        "rerun rrd verify: {}{}",
+        String::from_utf8_lossy(&v.stdout),
+        String::from_utf8_lossy(&v.stderr)
+    );
+    let rows = rrd_rows(&rrd);
+    let has = |entity: &str, archetype: &str, at_least: u64| {
+        let n = rows
+            .get(&(entity.to_string(), archetype.to_string()))
+            .copied()
+            .unwrap_or(0);
+        assert!(
+            n >= at_least,
+            "{entity} has {n} rows of {archetype} (want ≥ {at_least}); entities: {:?}",
+            rows.keys()
+                .map(|k| &k.0)
+                .collect::<std::collections::BTreeSet<_>>()
+        );
+    };
+    for j in ["j1", "j2", "j3", "j4"] {
+        // 3 s of 1 kHz samples, drawn at 100 Hz and loops redrawn at 5 Hz.
+        has(&format!("/joints/{j}/loop/measured"), "LineStrips2D", 10);
+        has(&format!("/joints/{j}/loop/model"), "LineStrips2D", 10);
+        for s in ["pivot_mm", "stiffness/estimate", "stiffness/truth"] {
+            has(&format!("/joints/{j}/{s}"), "Scalars", 200);
+        }
+    }
+    has("/robot/links", "LineStrips2D", 40);
+    has("/robot/joints", "Points2D", 40);
+    has("/robot/force/estimate", "Arrows2D", 40);
+    has("/robot/force/truth", "Arrows2D", 40);
+    for axis in ["x", "y"] {
+        has(&format!("/force/estimate/{axis}"), "Scalars", 200);
+        has(&format!("/force/truth/{axis}"), "Scalars", 200);
+    }
+    for c in ["xx", "xy", "yy"] {
+        has(&format!("/allocation/k/wanted/{c}"), "Scalars", 1);
+        has(&format!("/allocation/k/achieved/{c}"), "Scalars", 1);
+        has(&format!("/allocation/k/estimated/{c}"), "Scalars", 200);
+    }
+    for e in ["wanted", "achieved", "estimated"] {
+        has(&format!("/allocation/ellipse/{e}"), "LineStrips2D", 1);
+    }
+    has("/status", "TextLog", 4);
+    assert!(
+        rows.keys().any(|(_, a)| a == "ContainerBlueprint"),
+        "the blueprint travels with the recording"
+    );
+    std::fs::remove_dir_all(&dir).ok();
+}
+
+#[test]
+fn the_awas_view_shows_inertia_and_damping_with_their_uncertainty() {
+    let _one_at_a_time = serial();
+    let dir = viz_dir("awas");
+    let rrd = dir.join("awas.rrd");
+    let cfg = Path::new(env!("CARGO_MANIFEST_DIR")).join("../rig-config/examples/awas.toml");
+    let o = Command::new(bin("rig"))
+        .args(["up", "--duration", "2", "--config"])
+        .arg(&cfg)
+        .arg("--save")
+        .arg(&rrd)
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let rows = rrd_rows(&rrd);
+    for q in ["inertia", "damping"] {
+        for s in ["estimate", "plus_2sigma", "minus_2sigma", "config"] {
+            let key = (format!("/joints/awas/{q}/{s}"), "Scalars".to_string());
+            assert!(
+                rows.get(&key).copied().unwrap_or(0) > 50,
+                "{key:?}: {rows:?}"
+            );
+        }
+    }
+    let loops = (
+        "/joints/awas/loop/measured".to_string(),
+        "LineStrips2D".to_string(),
+    );
+    assert!(rows.get(&loops).copied().unwrap_or(0) > 3, "{rows:?}");
+    std::fs::remove_dir_all(&dir).ok();
 }

@@ -58,6 +58,7 @@ pub async fn run(
                 .map_err(z)?,
         );
     }
+    let result_pub = rig_runtime::publisher(&session, keys.allocation_result()).await?;
     let _token = session
         .liveliness()
         .declare_token(keys.alive("allocator", "0")?)
@@ -85,7 +86,8 @@ pub async fn run(
                         report.requests += 1;
                         let (result, cmds) = core.on_request(&req, now_ns());
                         if let Ok(bytes) = encode(&result) {
-                            q.reply(keys.allocate(), bytes).await.map_err(z)?;
+                            q.reply(keys.allocate(), bytes.clone()).await.map_err(z)?;
+                            result_pub.put(bytes).await.map_err(z)?;
                         }
                         cmds
                     }
@@ -105,6 +107,9 @@ pub async fn run(
                         if !result.feasible {
                             eprintln!("rig allocator: goal {} not applied: {}", req.id, result.error);
                         }
+                        if let Ok(bytes) = encode(&result) {
+                            result_pub.put(bytes).await.map_err(z)?;
+                        }
                         cmds
                     }
                     Err(e) => {
@@ -117,7 +122,15 @@ pub async fn run(
             e = ees.recv_async() => {
                 let Ok(e) = e else { break };
                 match decode::<EeEstimate>(&e.payload().to_bytes()) {
-                    Ok(ee) => core.on_ee(&ee, now_ns()).map(|(_, c)| c).unwrap_or_default(),
+                    Ok(ee) => match core.on_ee(&ee, now_ns()) {
+                        Some((result, cmds)) => {
+                            if let Ok(bytes) = encode(&result) {
+                                result_pub.put(bytes).await.map_err(z)?;
+                            }
+                            cmds
+                        }
+                        None => Vec::new(),
+                    },
                     Err(_) => {
                         report.malformed += 1;
                         Vec::new()

@@ -17,6 +17,7 @@ use rig_runtime::{NetOverrides, now_ns, open, publisher, zenoh_err as z};
 use thiserror::Error;
 
 use crate::core::{CoreStats, CoreTiming, EstimatorCore, Output};
+use crate::histogram::Histogram;
 
 #[derive(Debug, Error)]
 pub enum EstimatorError {
@@ -65,18 +66,6 @@ pub struct EstimatorReport {
     pub publish_errors: u64,
 }
 
-/// Most ages and latencies kept for the percentiles (80 MB each at the cap).
-const MAX_KEPT: usize = 10_000_000;
-
-fn percentiles(mut v: Vec<u64>) -> [u64; 3] {
-    if v.is_empty() {
-        return [0; 3];
-    }
-    v.sort_unstable();
-    let at = |q: f64| v[((v.len() - 1) as f64 * q).round() as usize];
-    [at(0.5), at(0.99), v[v.len() - 1]]
-}
-
 /// The host's publishers.
 struct Publishers {
     joints: Vec<zenoh::pubsub::Publisher<'static>>,
@@ -123,10 +112,10 @@ impl Publishers {
 struct State {
     core: EstimatorCore,
     report: EstimatorReport,
-    ages: Vec<u64>,
-    latencies: Vec<u64>,
-    transport: Vec<u64>,
-    all_out: Vec<u64>,
+    ages: Histogram,
+    latencies: Histogram,
+    transport: Histogram,
+    all_out: Histogram,
     last_seq: Vec<Option<u64>>,
     first_arrival: Option<u64>,
 }
@@ -158,9 +147,7 @@ fn on_sample(state: &Mutex<State>, pubs: &Publishers, s: &zenoh::sample::Sample)
         let mut st = lock(state);
         let first = *st.first_arrival.get_or_insert(now);
         st.report.window_ns = now.saturating_sub(first);
-        if st.ages.len() < MAX_KEPT {
-            st.ages.push(now.saturating_sub(sample.t_acq_ns) / 1000);
-        }
+        st.ages.record(now.saturating_sub(sample.t_acq_ns) / 1000);
         let gap = match st.last_seq.get(sample.joint as usize) {
             Some(Some(l)) if sample.seq > *l => sample.seq - l - 1,
             _ => 0,
@@ -175,12 +162,10 @@ fn on_sample(state: &Mutex<State>, pubs: &Publishers, s: &zenoh::sample::Sample)
     let done = now_ns();
     let mut st = lock(state);
     st.report.publish_errors += failed;
-    if let (Some(t), Some(first)) = (published_ns, first_out)
-        && st.latencies.len() < MAX_KEPT
-    {
-        st.transport.push(now.saturating_sub(t) / 1000);
-        st.latencies.push(first.saturating_sub(t) / 1000);
-        st.all_out.push(done.saturating_sub(t) / 1000);
+    if let (Some(t), Some(first)) = (published_ns, first_out) {
+        st.transport.record(now.saturating_sub(t) / 1000);
+        st.latencies.record(first.saturating_sub(t) / 1000);
+        st.all_out.record(done.saturating_sub(t) / 1000);
     }
 }
 
@@ -206,10 +191,10 @@ pub async fn run(
     let state = Arc::new(Mutex::new(State {
         core,
         report: EstimatorReport::default(),
-        ages: Vec::new(),
-        latencies: Vec::new(),
-        transport: Vec::new(),
-        all_out: Vec::new(),
+        ages: Histogram::new(),
+        latencies: Histogram::new(),
+        transport: Histogram::new(),
+        all_out: Histogram::new(),
         last_seq: vec![None; n],
         first_arrival: None,
     }));
@@ -257,10 +242,10 @@ pub async fn run(
         let mut st = lock(&state);
         st.report.core = st.core.stats;
         let mut r = st.report;
-        r.age_us = percentiles(std::mem::take(&mut st.ages));
-        r.latency_us = percentiles(std::mem::take(&mut st.latencies));
-        r.transport_us = percentiles(std::mem::take(&mut st.transport));
-        r.all_published_us = percentiles(std::mem::take(&mut st.all_out));
+        r.age_us = st.ages.summary();
+        r.latency_us = st.latencies.summary();
+        r.transport_us = st.transport.summary();
+        r.all_published_us = st.all_out.summary();
         r
     };
     session.close().await.map_err(z)?;

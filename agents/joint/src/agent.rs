@@ -179,14 +179,15 @@ impl Served {
             Ok(bytes) => self.sample_pub.put(bytes).await.map_err(z)?,
             Err(e) => eprintln!("rig-joint {}: sample not sent: {e}", self.name),
         }
-        if let Some((deflection_rad, torque_nm, link_rad)) = r.truth {
+        if let Some(t) = r.truth {
             let truth = SimTruth {
                 joint: self.index,
                 seq: self.report.samples,
                 t_acq_ns: t_acq,
-                deflection_rad,
-                torque_nm,
-                link_rad,
+                deflection_rad: t.deflection_rad,
+                torque_nm: t.torque_nm,
+                link_rad: t.link_rad,
+                stiffness_nm_per_rad: t.stiffness_nm_per_rad,
             };
             if let Ok(bytes) = encode(&truth) {
                 self.truth_pub.put(bytes).await.map_err(z)?;
@@ -300,6 +301,8 @@ pub async fn run(
         joint.status(&session, JointState::Stopped, text).await?;
         reports.push(joint.report);
     }
+    // Closing drops what is still queued: give the last statuses time to leave.
+    tokio::time::sleep(Duration::from_millis(50)).await;
     session.close().await.map_err(z)?;
     Ok(reports)
 }

@@ -23,6 +23,16 @@ pub enum BackendError {
     World(String),
 }
 
+/// What the simulator knows and a real joint cannot: the true deflection [rad], torque
+/// [N·m], link angle [rad] and stiffness [N·m/rad].
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Truth {
+    pub deflection_rad: f64,
+    pub torque_nm: f64,
+    pub link_rad: f64,
+    pub stiffness_nm_per_rad: f64,
+}
+
 /// One reading of the joint, and (simulated backends only) the truth.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Reading {
@@ -31,7 +41,7 @@ pub struct Reading {
     pub pivot_m: Option<f64>,
     pub torque_nm: Option<f64>,
     pub stiffness_motor_rad: Option<f64>,
-    pub truth: Option<(f64, f64, f64)>,
+    pub truth: Option<Truth>,
 }
 
 /// Stroke amplitude and duration of the simulated hand in a running robot rig.
@@ -182,7 +192,12 @@ impl SimBackend {
                     pivot_m: Some(plant.pivot.d),
                     torque_nm: None,
                     stiffness_motor_rad: None,
-                    truth: Some((defl, tau, link)),
+                    truth: Some(Truth {
+                        deflection_rad: defl,
+                        torque_nm: tau,
+                        link_rad: link,
+                        stiffness_nm_per_rad: plant.rest_stiffness(),
+                    }),
                 })
             }
             Sim::Bench {
@@ -199,7 +214,12 @@ impl SimBackend {
                     pivot_m: Some(plant.pivot.d),
                     torque_nm: Some(tau + self.noise.gaussian(self.torque_noise_nm)),
                     stiffness_motor_rad: None,
-                    truth: Some((defl, tau, defl)),
+                    truth: Some(Truth {
+                        deflection_rad: defl,
+                        torque_nm: tau,
+                        link_rad: defl,
+                        stiffness_nm_per_rad: plant.rest_stiffness(),
+                    }),
                 })
             }
             Sim::Awas { plant, t_plant } => {
@@ -226,7 +246,12 @@ impl SimBackend {
                     pivot_m: None,
                     torque_nm: Some(tau + self.noise.gaussian(0.05)),
                     stiffness_motor_rad: Some(s.theta2),
-                    truth: Some((s.q - s.theta1, tau, s.q)),
+                    truth: Some(Truth {
+                        deflection_rad: s.q - s.theta1,
+                        torque_nm: tau,
+                        link_rad: s.q,
+                        stiffness_nm_per_rad: plant.stiffness(t),
+                    }),
                 })
             }
         }

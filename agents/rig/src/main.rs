@@ -11,6 +11,7 @@
 //!   `rig_model::allocation` (bounded least squares, tie-break) and `rig_model::lever`
 //!   (stiffness → pivot position);
 //! - `rig sim` → [`sim`] → `rig_sim::scenario` (plants, sensors, undeclared effects);
+//! - `rig viz`, `rig up --viz`, `rig replay --viz` → [`viz`] → `rig_viz` (the Rerun view);
 //! - `rig bench` → [`bench`]: raw Zenoh round trip, the estimator host's latency and
 //!   throughput, with the same agents and host `rig up` runs;
 //! - `rig reproduce` → [`reproduce`] → `rig_sim::reproduce` (the papers' experiments); the
@@ -26,6 +27,7 @@ mod reproduce;
 mod sim;
 mod up;
 mod validate;
+mod viz;
 
 use std::process::ExitCode;
 
@@ -75,6 +77,9 @@ enum Command {
     Sim(sim::Args),
     /// Reproduce a paper's experiments in simulation and print our numbers beside its own.
     Reproduce(reproduce::Args),
+    /// Show a running rig live in Rerun: hysteresis loops, stiffness, end-effector force,
+    /// allocations (spawns the viewer when `rerun` is on PATH, else saves an .rrd).
+    Viz(viz::Args),
     /// Measure the rig on this machine: Zenoh round trip and sample→estimate latency
     /// (`latency`), or how many joints one estimator host keeps up with (`throughput`).
     Bench(bench::Args),
@@ -93,6 +98,7 @@ fn main() -> ExitCode {
         Command::Sim(a) => sim::run(&a),
         Command::Reproduce(a) => reproduce::run(&a),
         Command::Bench(a) => bench::run(&a),
+        Command::Viz(a) => viz::run(&a),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,

@@ -32,7 +32,7 @@ fn schema_of(kind: u8) -> (&'static str, &'static str) {
         Some(Kind::AllocationResult) => {
             ("rig.AllocationResult", "<2sBBI <QBddddddd B n*d n*d H utf8")
         }
-        Some(Kind::SimTruth) => ("rig.SimTruth", "<2sBBI <HQQddd"),
+        Some(Kind::SimTruth) => ("rig.SimTruth", "<2sBBI <HQQdddd"),
         None => ("rig.Unknown", "not a rig message"),
     }
 }
@@ -200,10 +200,14 @@ pub struct ReplayArgs {
     /// recording to start before the rig (the models' hysteresis remembers what it saw)
     #[arg(long, default_value_t = 0.0, value_name = "SECONDS")]
     settle: f64,
-    #[arg(long, value_name = "ENDPOINT")]
+    /// Zenoh endpoints to connect to, or a Rerun viewer URL for --viz
+    #[arg(long, value_name = "ENDPOINT|URL")]
     connect: Vec<String>,
     #[arg(long, value_name = "ENDPOINT")]
     listen: Vec<String>,
+    /// Draw the recording in Rerun instead of republishing it
+    #[command(flatten)]
+    viz: crate::viz::VizArgs,
 }
 
 pub fn replay(a: &ReplayArgs) -> Result<(), CliError> {
@@ -219,6 +223,21 @@ pub fn replay(a: &ReplayArgs) -> Result<(), CliError> {
     if a.estimate {
         return estimate_offline(&cfg, &msgs, a);
     }
+    let (zenoh_connect, viewer_url) = crate::viz::split_connect(&a.connect);
+    if let Some(sink) = a.viz.sink(viewer_url, &cfg, false) {
+        let viz = crate::viz::VizThread::start(&cfg, &sink)?;
+        let tx = viz.sender();
+        for m in &msgs {
+            let _ = tx.send((m.topic.clone(), m.data.clone()));
+        }
+        drop(tx);
+        let s = viz.finish()?;
+        eprintln!(
+            "rig replay: {} messages drawn ({} log calls after decimation, {} skipped)",
+            s.messages, s.logged, s.skipped
+        );
+        return Ok(());
+    }
     let rt = tokio::runtime::Builder::new_multi_thread()
         .worker_threads(2)
         .enable_all()
@@ -228,7 +247,7 @@ pub fn replay(a: &ReplayArgs) -> Result<(), CliError> {
             &cfg.zenoh,
             &NetOverrides {
                 listen: a.listen.clone(),
-                connect: a.connect.clone(),
+                connect: zenoh_connect,
             },
         )
         .await

@@ -36,8 +36,9 @@ pub struct Args {
     /// loopback port), e.g. tcp/127.0.0.1:7447
     #[arg(long, value_name = "ENDPOINT")]
     listen: Vec<String>,
-    /// Also connect to these endpoints (e.g. a router or another machine's rig)
-    #[arg(long, value_name = "ENDPOINT")]
+    /// Also connect to these endpoints (e.g. a router or another machine's rig); a Rerun
+    /// viewer URL (rerun+http://127.0.0.1:9876/proxy) streams the view there
+    #[arg(long, value_name = "ENDPOINT|URL")]
     connect: Vec<String>,
     /// Decoupled stiffness goal for the allocator, percent of the range (robots only)
     #[arg(long, default_value_t = 25.0, value_name = "P")]
@@ -45,6 +46,8 @@ pub struct Args {
     /// Seed of the simulated sensors
     #[arg(long, default_value_t = 1)]
     seed: u64,
+    #[command(flatten)]
+    viz: crate::viz::VizArgs,
 }
 
 fn free_loopback_endpoint() -> Result<String, CliError> {
@@ -52,12 +55,97 @@ fn free_loopback_endpoint() -> Result<String, CliError> {
     Ok(format!("tcp/127.0.0.1:{}", l.local_addr()?.port()))
 }
 
-/// What the summary watches.
-#[derive(Debug, Default)]
+/// What the summary watches: counts, and the force error scored as estimates and truths
+/// meet (bounded memory however long the rig runs).
 struct Watch {
     samples: BTreeMap<u16, u64>,
+    joints: usize,
+    world: Option<StrokeWorld>,
+    start_ns: u64,
+    /// True torques and estimated forces by tick, until their other half arrives.
     truths: BTreeMap<u64, BTreeMap<u16, f64>>,
-    ee: Vec<EeEstimate>,
+    ee: BTreeMap<u64, (f64, f64)>,
+    sq: f64,
+    count: usize,
+    peak: f64,
+}
+
+/// How long an unmatched truth or estimate waits for its other half [ns].
+const MATCH_WINDOW_NS: u64 = 2_000_000_000;
+
+impl Watch {
+    fn new(cfg: &RigConfig, start_ns: u64) -> Self {
+        let world = cfg.robot().zip(cfg.geometry).and_then(|(robot, g)| {
+            StrokeWorld::new(robot, g.home, WORLD_STROKE_M, WORLD_STROKE_S).ok()
+        });
+        Self {
+            samples: BTreeMap::new(),
+            joints: cfg.joints.len(),
+            world,
+            start_ns,
+            truths: BTreeMap::new(),
+            ee: BTreeMap::new(),
+            sq: 0.0,
+            count: 0,
+            peak: 0.0,
+        }
+    }
+
+    fn truth(&mut self, t_ns: u64, joint: u16, torque: f64) {
+        if self.world.is_none() {
+            return;
+        }
+        self.truths.entry(t_ns).or_default().insert(joint, torque);
+        self.score(t_ns);
+    }
+
+    fn estimate(&mut self, t_ns: u64, force: Option<(f64, f64)>) {
+        if let (Some(f), Some(_)) = (force, &self.world) {
+            self.ee.insert(t_ns, f);
+            self.score(t_ns);
+        }
+    }
+
+    /// Scores tick `t_ns` once it has an estimate and every joint's truth; forgets what
+    /// waited longer than the match window.
+    fn score(&mut self, t_ns: u64) {
+        let complete = self
+            .truths
+            .get(&t_ns)
+            .is_some_and(|t| t.len() == self.joints);
+        if complete && let Some(&(fx, fy)) = self.ee.get(&t_ns) {
+            let torques: Vec<f64> = self
+                .truths
+                .remove(&t_ns)
+                .map(|t| t.into_values().collect())
+                .unwrap_or_default();
+            self.ee.remove(&t_ns);
+            let t = t_ns.saturating_sub(self.start_ns) as f64 * 1e-9;
+            if let Some(Ok(f)) = self.world.as_ref().map(|w| w.force(t, &torques)) {
+                self.sq += (fx - f[0]).powi(2) + (fy - f[1]).powi(2);
+                self.peak = self.peak.max(f.norm());
+                self.count += 1;
+            }
+        }
+        let oldest = t_ns.saturating_sub(MATCH_WINDOW_NS);
+        self.truths = self.truths.split_off(&oldest);
+        self.ee = self.ee.split_off(&oldest);
+    }
+
+    /// The estimated force against the simulated truth (robots only).
+    fn force_error(&self) -> Option<String> {
+        self.world.as_ref()?;
+        if self.count == 0 {
+            return Some("force vs simulated truth: no estimate matched a complete truth".into());
+        }
+        let rmse = (self.sq / self.count as f64).sqrt();
+        Some(format!(
+            "force vs simulated truth over {} estimates: RMSE {rmse:.4} N = {:.2} % of the {:.3} N peak",
+            self.count,
+            100.0 * rmse / self.peak.max(1e-12),
+            self.peak
+        ))
+    }
 }
 
 pub fn run(args: &Args) -> Result<(), CliError> {
@@ -73,6 +161,11 @@ pub fn run(args: &Args) -> Result<(), CliError> {
 }
 
 async fn up(cfg: RigConfig, args: &Args) -> Result<(), CliError> {
+    let (zenoh_connect, viewer_url) = crate::viz::split_connect(&args.connect);
+    let viz = match args.viz.sink(viewer_url, &cfg, false) {
+        Some(sink) => Some(crate::viz::VizThread::start(&cfg, &sink)?),
+        None => None,
+    };
     let hub = match args.listen.first() {
         Some(e) => e.clone(),
         None => free_loopback_endpoint()?,
@@ -91,7 +184,7 @@ async fn up(cfg: RigConfig, args: &Args) -> Result<(), CliError> {
     let peer = NetOverrides {
         listen: vec![],
         connect: std::iter::once(hub.clone())
-            .chain(args.connect.iter().cloned())
+            .chain(zenoh_connect.iter().cloned())
             .collect(),
     };
     let err = |e: String| CliError::Unsupported(e);
@@ -102,13 +195,21 @@ async fn up(cfg: RigConfig, args: &Args) -> Result<(), CliError> {
             cfg: cfg.clone(),
             net: NetOverrides {
                 listen,
-                connect: args.connect.clone(),
+                connect: zenoh_connect.clone(),
             },
             duration: None,
         },
         stopped(stop_rx.clone()),
     ));
     tokio::time::sleep(Duration::from_millis(300)).await;
+    // The view joins before the joints, so it sees the first sample.
+    // It stops last, to show the joints' last statuses.
+    let (viz_stop_tx, viz_stop_rx) = watch::channel(false);
+    let observer = viz.as_ref().map(|v| {
+        let (cfg, net, v_tx) = (cfg.clone(), peer.clone(), v.sender());
+        let stop = stopped(viz_stop_rx);
+        tokio::spawn(async move { crate::viz::observe_with(&cfg, &net, v_tx, stop).await })
+    });
     let alloc = tokio::spawn(run_allocator(
         AllocatorOptions {
             cfg: cfg.clone(),
@@ -180,7 +281,7 @@ async fn up(cfg: RigConfig, args: &Args) -> Result<(), CliError> {
         }
     }
 
-    let mut w = Watch::default();
+    let mut w = Watch::new(&cfg, start_ns);
     let deadline = duration.map(|d| tokio::time::Instant::now() + d);
     let ctrl_c = tokio::signal::ctrl_c();
     tokio::pin!(ctrl_c);
@@ -194,10 +295,10 @@ async fn up(cfg: RigConfig, args: &Args) -> Result<(), CliError> {
                 *w.samples.entry(m.joint).or_default() += 1;
             },
             s = subs.1.recv_async() => if let Ok(s) = s && let Ok(m) = decode::<SimTruth>(&s.payload().to_bytes()) {
-                w.truths.entry(m.t_acq_ns).or_default().insert(m.joint, m.torque_nm);
+                w.truth(m.t_acq_ns, m.joint, m.torque_nm);
             },
             s = subs.2.recv_async() => if let Ok(s) = s && let Ok(m) = decode::<EeEstimate>(&s.payload().to_bytes()) {
-                w.ee.push(m);
+                w.estimate(m.t_ns, m.force_n);
             },
         }
     }
@@ -219,6 +320,15 @@ async fn up(cfg: RigConfig, args: &Args) -> Result<(), CliError> {
         .map_err(|e| err(e.to_string()))?
         .map_err(|e| err(e.to_string()))?;
     let _ = session.close().await;
+    tokio::time::sleep(Duration::from_millis(200)).await;
+    let _ = viz_stop_tx.send(true);
+    let viz_stats = match (observer, viz) {
+        (Some(o), Some(v)) => {
+            o.await.map_err(|e| err(e.to_string()))??;
+            Some(v.finish()?)
+        }
+        _ => None,
+    };
 
     println!(
         "rig \"{}\" ran {:.1} s ({} topology, {} Hz)",
@@ -255,38 +365,14 @@ async fn up(cfg: RigConfig, args: &Args) -> Result<(), CliError> {
         "allocator: {} goals, {} requests, {} pivot commands sent",
         alloc_report.goals, alloc_report.requests, alloc_report.commands
     );
-    if let Some(line) = force_error(&cfg, &w, start_ns) {
+    if let Some(line) = w.force_error() {
         println!("{line}");
     }
+    if let Some(v) = viz_stats {
+        println!(
+            "viz: {} messages, {} drawn after decimation ({} skipped, {} errors)",
+            v.messages, v.logged, v.skipped, v.errors
+        );
+    }
     Ok(())
-}
-
-/// The estimated force against the simulated truth, over the estimates whose tick has every
-/// joint's true torque.
-fn force_error(cfg: &RigConfig, w: &Watch, start_ns: u64) -> Option<String> {
-    let (robot, g) = cfg.robot().zip(cfg.geometry)?;
-    let world = StrokeWorld::new(robot, g.home, WORLD_STROKE_M, WORLD_STROKE_S).ok()?;
-    let n = cfg.joints.len();
-    let (mut sq, mut count, mut peak) = (0.0, 0usize, 0.0_f64);
-    for e in &w.ee {
-        let Some((fx, fy)) = e.force_n else { continue };
-        let Some(t) = w.truths.get(&e.t_ns).filter(|t| t.len() == n) else {
-            continue;
-        };
-        let torques: Vec<f64> = t.values().copied().collect();
-        let Ok(f) = world.force(e.t_ns.saturating_sub(start_ns) as f64 * 1e-9, &torques) else {
-            continue;
-        };
-        sq += (fx - f[0]).powi(2) + (fy - f[1]).powi(2);
-        peak = peak.max(f.norm());
-        count += 1;
-    }
-    if count == 0 {
-        return Some("force vs simulated truth: no estimate matched a complete truth".into());
-    }
-    let rmse = (sq / count as f64).sqrt();
-    Some(format!(
-        "force vs simulated truth over {count} estimates: RMSE {rmse:.4} N = {:.2} % of the {peak:.3} N peak",
-        100.0 * rmse / peak.max(1e-12)
-    ))
 }

@@ -108,6 +108,33 @@ impl PlanarRobot {
         }
     }
 
+    /// The robot drawn as polylines [m], one per chain from its base to the end effector
+    /// through every joint (serial: base, elbow, end effector; five-bar: chain 1 as the
+    /// serial arm, chain 2 from (Lb, 0) through joints 4 and 5).
+    pub fn chains(&self, c: &Configuration) -> Vec<Vec<(f64, f64)>> {
+        let ee = (c.pose.x, c.pose.y);
+        let t = &c.theta;
+        match self {
+            PlanarRobot::Serial(r) => {
+                let elbow = (r.l1 * t[0].cos(), r.l1 * t[0].sin());
+                vec![vec![(0.0, 0.0), elbow, ee]]
+            }
+            PlanarRobot::FiveBar(r) => {
+                let g = &r.geometry;
+                let elbow1 = (g.l1 * t[0].cos(), g.l1 * t[0].sin());
+                let elbow2 = (g.lb + g.l3 * t[2].cos(), g.l3 * t[2].sin());
+                let wrist = (
+                    elbow2.0 + g.l4 * (t[2] + t[3]).cos(),
+                    elbow2.1 + g.l4 * (t[2] + t[3]).sin(),
+                );
+                vec![
+                    vec![(0.0, 0.0), elbow1, ee],
+                    vec![(g.lb, 0.0), elbow2, wrist, ee],
+                ]
+            }
+        }
+    }
+
     /// The configuration for the independent joints θ_a = (θ1, θ2) [rad] (loop closure
     /// solves the dependent ones for the five-bar).
     pub fn from_independent(
@@ -326,5 +353,28 @@ mod tests {
             Err(KinematicsError::Unreachable { .. })
         ));
         assert!(wrap_angle(3.0 * std::f64::consts::PI) - std::f64::consts::PI < 1e-12);
+    }
+
+    #[test]
+    fn chains_end_at_the_end_effector_with_link_lengths() {
+        let robot = PlanarRobot::FiveBar(FiveBar::example());
+        let c = robot.at_position(0.075, 0.2).unwrap();
+        let chains = robot.chains(&c);
+        let g = FiveBar::example().geometry;
+        let len = |a: (f64, f64), b: (f64, f64)| (a.0 - b.0).hypot(a.1 - b.1);
+        assert_eq!(chains.len(), 2);
+        for ch in &chains {
+            let last = ch[ch.len() - 1];
+            assert!(len(last, (0.075, 0.2)) < 1e-12);
+        }
+        let (c1, c2) = (&chains[0], &chains[1]);
+        assert!((len(c1[0], c1[1]) - g.l1).abs() < 1e-12);
+        assert!(
+            (len(c1[1], c1[2]) - g.l2).abs() < 1e-9,
+            "loop closure puts chain 1 on the pose"
+        );
+        assert!((len(c2[0], c2[1]) - g.l3).abs() < 1e-12);
+        assert!((len(c2[1], c2[2]) - g.l4).abs() < 1e-12);
+        assert!((len(c2[2], c2[3]) - g.l5).abs() < 1e-9);
     }
 }

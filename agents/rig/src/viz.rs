@@ -1,0 +1,188 @@
+//! The Rerun view's edges: `rig viz` (a Zenoh observer of a running rig), the `--viz` of
+//! `rig up` and `rig replay`, and the Rerun-style sink flags they share. The drawing itself is
+//! `rig_viz`.
+
+use std::path::PathBuf;
+use std::sync::mpsc;
+use std::time::Duration;
+
+use rig_config::RigConfig;
+use rig_runtime::{NetOverrides, open, zenoh_err};
+use rig_viz::{Sink, Viz, VizStats, is_rerun_url};
+
+use crate::error::CliError;
+
+/// Rerun's own flags: `--spawn`, `--connect URL` (shared with the Zenoh endpoints; a
+/// `rerun+http://…` URL goes to the viewer), `--save FILE.rrd`.
+#[derive(Debug, Clone, Default, clap::Args)]
+pub struct VizArgs {
+    /// Show the rig in Rerun: spawn the viewer when `rerun` is on PATH (pip install
+    /// rerun-sdk==0.36.3), else save an .rrd and say where
+    #[arg(long)]
+    pub viz: bool,
+    /// Spawn a Rerun viewer and stream to it (implies --viz)
+    #[arg(long)]
+    pub spawn: bool,
+    /// Save the view to this .rrd file instead of showing it (implies --viz)
+    #[arg(long, value_name = "FILE.rrd")]
+    pub save: Option<PathBuf>,
+}
+
+/// Splits `--connect` values into Zenoh endpoints and Rerun viewer URLs.
+pub fn split_connect(connect: &[String]) -> (Vec<String>, Option<String>) {
+    let (rerun, zenoh): (Vec<&String>, Vec<&String>) =
+        connect.iter().partition(|c| is_rerun_url(c));
+    (
+        zenoh.into_iter().cloned().collect(),
+        rerun.last().map(|s| s.to_string()),
+    )
+}
+
+impl VizArgs {
+    /// The sink asked for, if any (`viewer_url` from `--connect`); `always` for `rig viz`.
+    pub fn sink(&self, viewer_url: Option<String>, cfg: &RigConfig, always: bool) -> Option<Sink> {
+        if let Some(p) = &self.save {
+            return Some(Sink::Save(p.clone()));
+        }
+        if let Some(url) = viewer_url {
+            return Some(Sink::Connect(url));
+        }
+        if self.spawn {
+            return Some(Sink::Spawn);
+        }
+        (self.viz || always).then(|| {
+            let stamp = rig_runtime::now_ns() / 1_000_000_000;
+            Sink::default_for(PathBuf::from(format!("rig-{}-{stamp}.rrd", cfg.name)))
+        })
+    }
+}
+
+/// The view on its own thread, fed (key, payload) pairs through an unbounded channel so a
+/// Zenoh callback never waits on Rerun.
+pub struct VizThread {
+    tx: mpsc::Sender<(String, Vec<u8>)>,
+    thread: std::thread::JoinHandle<Result<VizStats, rig_viz::VizError>>,
+}
+
+impl VizThread {
+    pub fn start(cfg: &RigConfig, sink: &Sink) -> Result<Self, CliError> {
+        eprintln!("rig viz: {}", sink.describe());
+        let mut viz = Viz::open(cfg, sink).map_err(|e| CliError::Unsupported(e.to_string()))?;
+        let (tx, rx) = mpsc::channel::<(String, Vec<u8>)>();
+        let thread = std::thread::Builder::new()
+            .name("rig-viz".into())
+            .spawn(move || {
+                while let Ok((key, payload)) = rx.recv() {
+                    viz.on_message(&key, &payload);
+                }
+                viz.finish()
+            })?;
+        Ok(Self { tx, thread })
+    }
+
+    pub fn sender(&self) -> mpsc::Sender<(String, Vec<u8>)> {
+        self.tx.clone()
+    }
+
+    /// Waits for every message sent so far to be drawn and flushed.
+    pub fn finish(self) -> Result<VizStats, CliError> {
+        drop(self.tx);
+        self.thread
+            .join()
+            .map_err(|_| CliError::Unsupported("the viz thread panicked".into()))?
+            .map_err(|e| CliError::Unsupported(e.to_string()))
+    }
+}
+
+/// Observes `rig/<rig>/**` over Zenoh into the view until `stop` resolves.
+pub async fn observe(
+    cfg: &RigConfig,
+    net: &NetOverrides,
+    viz: &VizThread,
+    stop: impl std::future::Future<Output = ()>,
+) -> Result<(), CliError> {
+    observe_with(cfg, net, viz.sender(), stop).await
+}
+
+/// [`observe`] into a channel.
+pub async fn observe_with(
+    cfg: &RigConfig,
+    net: &NetOverrides,
+    tx: mpsc::Sender<(String, Vec<u8>)>,
+    stop: impl std::future::Future<Output = ()>,
+) -> Result<(), CliError> {
+    let err = |e: rig_runtime::RuntimeError| CliError::Unsupported(e.to_string());
+    let session = open(&cfg.zenoh, net).await.map_err(err)?;
+    let sub = session
+        .declare_subscriber(format!("rig/{}/**", cfg.name))
+        .callback(move |s| {
+            let _ = tx.send((
+                s.key_expr().to_string(),
+                s.payload().to_bytes().into_owned(),
+            ));
+        })
+        .await
+        .map_err(|e| err(zenoh_err(e)))?;
+    stop.await;
+    let _ = sub.undeclare().await;
+    let _ = session.close().await;
+    Ok(())
+}
+
+/// `rig viz`.
+#[derive(Debug, clap::Args)]
+pub struct Args {
+    /// Rig config (default: the example parallel robot)
+    #[arg(long, value_name = "FILE")]
+    config: Option<PathBuf>,
+    /// Zenoh endpoints of the running rig (e.g. the `rig up --listen` one), or a Rerun viewer
+    /// URL (rerun+http://127.0.0.1:9876/proxy) to stream to
+    #[arg(long, value_name = "ENDPOINT|URL")]
+    connect: Vec<String>,
+    /// Zenoh endpoints to listen on
+    #[arg(long, value_name = "ENDPOINT")]
+    listen: Vec<String>,
+    /// Stop after this many seconds (default: until Ctrl-C)
+    #[arg(long, value_name = "SECONDS")]
+    duration: Option<f64>,
+    #[command(flatten)]
+    sink: VizArgs,
+}
+
+pub fn run(a: &Args) -> Result<(), CliError> {
+    let cfg = match &a.config {
+        Some(p) => rig_config::load(p)?,
+        None => rig_config::examples::load("parallel")?,
+    };
+    let (zenoh, url) = split_connect(&a.connect);
+    let Some(sink) = a.sink.sink(url, &cfg, true) else {
+        return Err(CliError::Unsupported("no Rerun sink".into()));
+    };
+    let viz = VizThread::start(&cfg, &sink)?;
+    let net = NetOverrides {
+        listen: a.listen.clone(),
+        connect: zenoh,
+    };
+    let rt = tokio::runtime::Builder::new_multi_thread()
+        .worker_threads(2)
+        .enable_all()
+        .build()?;
+    let duration = a
+        .duration
+        .filter(|d| d.is_finite() && *d > 0.0)
+        .map(Duration::from_secs_f64);
+    rt.block_on(observe(&cfg, &net, &viz, async move {
+        match duration {
+            Some(d) => tokio::time::sleep(d).await,
+            None => {
+                let _ = tokio::signal::ctrl_c().await;
+            }
+        }
+    }))?;
+    let stats = viz.finish()?;
+    eprintln!(
+        "rig viz: {} messages, {} drawn after decimation, {} skipped, {} errors",
+        stats.messages, stats.logged, stats.skipped, stats.errors
+    );
+    Ok(())
+}
