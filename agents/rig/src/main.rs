@@ -56,8 +56,8 @@ enum Command {
     Allocator(hosts::HostArgs),
     /// Record every message of a running rig (rig/<rig>/**) into an MCAP file.
     Record(record::RecordArgs),
-    /// Republish an MCAP recording, or with --estimate run the estimator offline over it and
-    /// compare with the live estimates it holds.
+    /// Republish an MCAP recording; with --estimate run the estimator offline over it and
+    /// compare with the live estimates it holds; with --viz (--spawn, --save) draw it in Rerun.
     Replay(record::ReplayArgs),
     /// Check rig config files; print a summary, or every problem with file, line and field.
     ///
