@@ -25,6 +25,7 @@ use serde::Serialize;
 use tokio::sync::watch;
 
 use crate::error::CliError;
+use crate::up::free_loopback_endpoint;
 
 #[derive(Debug, clap::Args)]
 pub struct Args {
@@ -154,11 +155,6 @@ struct ThroughputReport {
     /// The estimator host's sample→estimate latency [µs] (see `rig bench latency`).
     latency_us: Percentiles,
     duration_s: f64,
-}
-
-fn free_loopback_endpoint() -> Result<String, CliError> {
-    let l = std::net::TcpListener::bind("127.0.0.1:0")?;
-    Ok(format!("tcp/127.0.0.1:{}", l.local_addr()?.port()))
 }
 
 fn zerr<E: std::fmt::Display>(e: E) -> CliError {

@@ -50,7 +50,8 @@ pub struct Args {
     viz: crate::viz::VizArgs,
 }
 
-fn free_loopback_endpoint() -> Result<String, CliError> {
+/// A Zenoh endpoint on a loopback port free now.
+pub(crate) fn free_loopback_endpoint() -> Result<String, CliError> {
     let l = std::net::TcpListener::bind("127.0.0.1:0")?;
     Ok(format!("tcp/127.0.0.1:{}", l.local_addr()?.port()))
 }
