@@ -66,17 +66,23 @@ fn s(v: &[&str]) -> Vec<String> {
 }
 
 fn joint(name: &str, hub: &str, start_ns: u64) -> Proc {
+    joint_linked(name, &[hub], start_ns)
+}
+
+/// A simulated joint connected to each of `peers` from its start.
+fn joint_linked(name: &str, peers: &[&str], start_ns: u64) -> Proc {
     let cfg = config();
-    let args = vec![
+    let mut args = vec![
         "--config".into(),
         cfg.to_string_lossy().into_owned(),
         "--joint".into(),
         name.into(),
-        "--connect".into(),
-        hub.into(),
         "--start-ns".into(),
         start_ns.to_string(),
     ];
+    for p in peers {
+        args.extend(["--connect".to_string(), p.to_string()]);
+    }
     spawn("rig-joint", &args)
 }
 
@@ -393,18 +399,24 @@ fn a_recording_replays_offline_to_the_same_estimates_and_survives_a_killed_recor
     let (full, killed) = (dir.join("full.mcap"), dir.join("killed.mcap"));
     let _est = host("estimator", &hub);
     std::thread::sleep(Duration::from_millis(500));
-    // Both recorders are connected before any joint publishes: the recording then holds every
-    // sample the live estimator uses.
+    // Both recorders listen and every joint connects to them directly (as well as to the
+    // estimator's hub): in peer-to-peer mode a sample reaches only peers already linked, and
+    // links found by gossip may come after a joint's first samples on a loaded machine. So the
+    // recording holds every sample the live estimator uses.
+    let (rec_at, killed_at) = (
+        format!("tcp/127.0.0.1:{}", free_port()),
+        format!("tcp/127.0.0.1:{}", free_port()),
+    );
     let mut rec = spawn(
         "rig",
         &s(&[
             "record",
             "--connect",
             &hub,
+            "--listen",
+            &rec_at,
             "--out",
             full.to_str().unwrap(),
-            "--duration",
-            "7",
         ]),
     );
     let mut rec_killed = spawn(
@@ -413,6 +425,8 @@ fn a_recording_replays_offline_to_the_same_estimates_and_survives_a_killed_recor
             "record",
             "--connect",
             &hub,
+            "--listen",
+            &killed_at,
             "--out",
             killed.to_str().unwrap(),
         ]),
@@ -421,16 +435,23 @@ fn a_recording_replays_offline_to_the_same_estimates_and_survives_a_killed_recor
     let start = now_ns();
     let joints: Vec<Proc> = ["j1", "j2", "j3", "j4"]
         .iter()
-        .map(|j| joint(j, &hub, start))
+        .map(|j| joint_linked(j, &[&hub, &rec_at, &killed_at], start))
         .collect();
     std::thread::sleep(Duration::from_secs(3));
     rec_killed.0.kill().unwrap(); // SIGKILL: no footer, no final flush
     let _ = rec_killed.0.wait();
     std::thread::sleep(Duration::from_millis(1500));
     drop(joints); // the joints stop before the recorder does
+    std::thread::sleep(Duration::from_millis(300));
+    // Ctrl-C ends a recording cleanly (footer and index written).
+    let interrupted = Command::new("kill")
+        .args(["-INT", &rec.0.id().to_string()])
+        .status()
+        .unwrap();
+    assert!(interrupted.success());
     assert!(
         rec.0.wait().unwrap().success(),
-        "the recorder ends after its duration"
+        "the recorder ends cleanly on Ctrl-C"
     );
 
     let replay = |file: &Path| {

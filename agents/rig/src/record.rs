@@ -324,8 +324,17 @@ fn estimate_offline(
     }
     let missing = used.len().saturating_sub(samples.len());
     if missing > 0 {
+        let have: std::collections::BTreeSet<(u16, u64)> =
+            samples.iter().map(|s| (s.joint, s.seq)).collect();
+        let which: Vec<String> = used
+            .difference(&have)
+            .take(8)
+            .map(|(j, q)| format!("joint {j} seq {q}"))
+            .collect();
         eprintln!(
-            "rig replay: {missing} samples the live estimator used are not in the recording (the recorder lost them)"
+            "rig replay: {missing} samples the live estimator used are not in the recording (the recorder lost them): {}{}",
+            which.join(", "),
+            if missing > which.len() { ", …" } else { "" }
         );
     }
     let t0 = samples.first().map_or(0, |s| s.t_acq_ns);
