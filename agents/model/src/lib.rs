@@ -13,12 +13,14 @@
 //! | [`planar`] | serial and five-bar kinematics, Jacobians, force, stiffness, S | paper B §4 |
 //! | [`estimator`] | joint samples → torques, end-effector force, K_uu (sans I/O) | paper B §3–4 |
 //! | [`allocation`] | bounded least squares for joint stiffnesses, tie-break, pivots | paper B §4.3 |
+//! | [`identify`] | residual → missing effect → augmented model, on held-out data | MODEL.md §6 |
 //! | [`pchip`] | monotone C¹ interpolation (parameters smooth in d) | — |
 
 pub mod allocation;
 pub mod awas;
 pub mod estimator;
 pub mod hysteresis;
+pub mod identify;
 pub mod lever;
 pub mod observer;
 pub mod pchip;

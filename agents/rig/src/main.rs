@@ -14,6 +14,9 @@
 //! - `rig viz`, `rig up --viz`, `rig replay --viz` → [`viz`] → `rig_viz` (the Rerun view);
 //! - `rig bench` → [`bench`]: raw Zenoh round trip, the estimator host's latency and
 //!   throughput, with the same agents and host `rig up` runs;
+//! - `rig identify` → [`identify`] → `rig_model::identify` (residual → missing effect →
+//!   augmented model, before/after on held-out data); files in [`identify_data`], plots in
+//!   [`identify_plots`];
 //! - `rig reproduce` → [`reproduce`] → `rig_sim::reproduce` (the papers' experiments); the
 //!   end-effector force there comes from `rig_model::estimator::RobotEstimator`.
 
@@ -21,6 +24,9 @@ mod allocate;
 mod bench;
 mod error;
 mod hosts;
+mod identify;
+mod identify_data;
+mod identify_plots;
 mod progress;
 mod record;
 mod reproduce;
@@ -77,6 +83,9 @@ enum Command {
     Sim(sim::Args),
     /// Reproduce a paper's experiments in simulation and print our numbers beside its own.
     Reproduce(reproduce::Args),
+    /// Close the loop with measured data: fit a declared model, trace its residual to the
+    /// effects it lacks, add those that pay off, report the held-out error before and after.
+    Identify(identify::Args),
     /// Show a running rig live in Rerun: hysteresis loops, stiffness, end-effector force,
     /// allocations (spawns the viewer when `rerun` is on PATH, else saves an .rrd).
     Viz(viz::Args),
@@ -97,6 +106,7 @@ fn main() -> ExitCode {
         Command::Allocate(a) => allocate::run(&a),
         Command::Sim(a) => sim::run(&a),
         Command::Reproduce(a) => reproduce::run(&a),
+        Command::Identify(a) => identify::run(&a),
         Command::Bench(a) => bench::run(&a),
         Command::Viz(a) => viz::run(&a),
     };

@@ -12,6 +12,8 @@
 //! | offset jump | `offset_jump_at_s`, `offset_jump_rad` | the encoder slips by this much at this time (a mount slipping) |
 //! | stiffness drift | `stiffness_drift_per_s` | the spring rate scales by (1 + rate·t) (temperature, creep) |
 //! | gravity | `gravity_mass_kg`, `gravity_com_m` | m·g·l·sin(q) on a link moving in a vertical plane, q from the vertical |
+//! | hard stop | `stop_at_rad`, `stop_rate_nm_per_rad` | an end stop of the deflection: rate·(|x| − at)·sgn(x) beyond ±at (lever bench only; the lever's own spring limit is part of every lever plant) |
+//! | periodic ripple | `ripple_nm`, `ripple_period_rad` | A·sin(2π·x/P) added to the measured torque, periodic in the measured angle x (gear teeth, cogging, encoder eccentricity; lever bench only) |
 
 use serde::Deserialize;
 
@@ -33,6 +35,10 @@ pub struct Effects {
     pub stiffness_drift_per_s: f64,
     pub gravity_mass_kg: f64,
     pub gravity_com_m: f64,
+    pub ripple_nm: f64,
+    pub ripple_period_rad: f64,
+    pub stop_at_rad: Option<f64>,
+    pub stop_rate_nm_per_rad: f64,
 }
 
 impl Effects {
@@ -48,6 +54,10 @@ impl Effects {
             ("sensor_delay_s", self.sensor_delay_s),
             ("gravity_mass_kg", self.gravity_mass_kg),
             ("gravity_com_m", self.gravity_com_m),
+            ("ripple_nm", self.ripple_nm),
+            ("ripple_period_rad", self.ripple_period_rad),
+            ("stop_rate_nm_per_rad", self.stop_rate_nm_per_rad),
+            ("stop_at_rad", self.stop_at_rad.unwrap_or(0.0)),
         ];
         for (name, v) in nonneg {
             if !(v.is_finite() && v >= 0.0) {
@@ -68,6 +78,11 @@ impl Effects {
                 return Err(format!("effects.{name} must be finite, got {v}"));
             }
         }
+        if self.ripple_nm > 0.0 && self.ripple_period_rad <= 0.0 {
+            return Err(
+                "effects.ripple_period_rad must be > 0 when effects.ripple_nm is set".into(),
+            );
+        }
         Ok(())
     }
 
@@ -86,6 +101,22 @@ impl Effects {
     /// Gravity torque at link angle `q` (from the vertical).
     pub fn gravity(&self, q: f64) -> f64 {
         self.gravity_mass_kg * G0 * self.gravity_com_m * q.sin()
+    }
+
+    /// Torque ripple at angle `x` [rad].
+    pub fn ripple(&self, x: f64) -> f64 {
+        if self.ripple_nm == 0.0 || self.ripple_period_rad <= 0.0 {
+            return 0.0;
+        }
+        self.ripple_nm * (std::f64::consts::TAU * x / self.ripple_period_rad).sin()
+    }
+
+    /// End-stop torque at deflection `x` [rad].
+    pub fn stop(&self, x: f64) -> f64 {
+        match self.stop_at_rad {
+            Some(at) => self.stop_rate_nm_per_rad * (x.abs() - at).max(0.0) * x.signum(),
+            None => 0.0,
+        }
     }
 
     /// Encoder bias at time `t`.

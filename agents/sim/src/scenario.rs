@@ -102,6 +102,13 @@ fn default_seed() -> u64 {
 pub struct LeverBench {
     pub pivot_mm: f64,
     pub amplitude_rad: f64,
+    /// Bouc-Wen hysteresis in the spring (default true); false leaves the exact lever spring.
+    #[serde(default = "yes")]
+    pub hysteresis: bool,
+}
+
+fn yes() -> bool {
+    true
 }
 
 #[derive(Debug, Clone, Deserialize)]
@@ -319,15 +326,25 @@ pub fn run(
                 .ok_or_else(|| sim("no [lever_bench]".into()))?;
             let vsa = lever(&cfg)?;
             let d = b.pivot_mm * 1e-3;
-            let mut plant =
-                LeverJointPlant::new(vsa, SpringHysteresis::default(), s.effects, d, 1.0)
-                    .map_err(|e| sim(e.to_string()))?;
+            let hysteresis = if b.hysteresis {
+                SpringHysteresis::default()
+            } else {
+                SpringHysteresis {
+                    a: 1.0,
+                    ..SpringHysteresis::default()
+                }
+            };
+            let mut plant = LeverJointPlant::new(vsa, hysteresis, s.effects, d, 1.0)
+                .map_err(|e| sim(e.to_string()))?;
             header(&["t", "phi", "tau", "d", "true_phi", "true_tau"].map(String::from))
                 .map_err(sink)?;
             let path = bench_path(n as usize, ts, b.amplitude_rad, s.seed);
             for (k, phi) in path.into_iter().enumerate() {
                 let t = k as f64 * ts;
-                let tau = plant.torque(phi, t, ts) + s.effects.gravity(phi);
+                let tau = plant.torque(phi, t, ts)
+                    + s.effects.gravity(phi)
+                    + s.effects.ripple(phi)
+                    + s.effects.stop(phi);
                 let tau_meas = delay.push(tau)
                     + s.effects.torque_offset_nm
                     + noise.gaussian(s.sensors.torque_noise_nm);

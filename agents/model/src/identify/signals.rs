@@ -1,0 +1,230 @@
+//! Signals derived from measured series: rates from local polynomial fits (irregular sampling
+//! welcome), the direction of motion with a dead band, the stop and play operators of
+//! rate-independent hysteresis and backlash, time shifts, and uniform resampling.
+
+/// Rate and acceleration of `x` over time `t` by a local quadratic least-squares fit over the
+/// samples within `half_window` seconds of each one (at least two on each side where the
+/// series allows). Works on irregular sampling; quantised signals come out smooth.
+pub fn local_rates(t: &[f64], x: &[f64], half_window: f64) -> (Vec<f64>, Vec<f64>) {
+    let n = t.len();
+    let (mut v, mut a) = (vec![0.0; n], vec![0.0; n]);
+    if n < 3 {
+        return (v, a);
+    }
+    let (mut lo, mut hi) = (0usize, 0usize);
+    for i in 0..n {
+        while lo < i.saturating_sub(2) && t[i] - t[lo] > half_window {
+            lo += 1;
+        }
+        while hi + 1 < n && (t[hi + 1] - t[i] <= half_window || hi < i + 2) {
+            hi += 1;
+        }
+        // Normal equations of x ≈ c0 + c1·s + c2·s², s = t_j − t_i, scaled by the window.
+        let h = half_window.max(1e-12);
+        let mut m = [[0.0f64; 3]; 3];
+        let mut r = [0.0f64; 3];
+        for j in lo..=hi {
+            let s = (t[j] - t[i]) / h;
+            let p = [1.0, s, s * s];
+            for (row, pr) in m.iter_mut().zip(p) {
+                for (e, pc) in row.iter_mut().zip(p) {
+                    *e += pr * pc;
+                }
+            }
+            for (e, pr) in r.iter_mut().zip(p) {
+                *e += pr * x[j];
+            }
+        }
+        if let Some(c) = solve3(m, r) {
+            v[i] = c[1] / h;
+            a[i] = 2.0 * c[2] / (h * h);
+        }
+    }
+    (v, a)
+}
+
+/// Solves a 3×3 system; `None` if singular.
+fn solve3(m: [[f64; 3]; 3], r: [f64; 3]) -> Option<[f64; 3]> {
+    let a = nalgebra::Matrix3::from_fn(|i, j| m[i][j]);
+    let x = a.lu().solve(&nalgebra::Vector3::from(r))?;
+    Some([x[0], x[1], x[2]])
+}
+
+/// Direction of motion from a centred (zero-lag) rate: sgn(ẋ) where |ẋ| exceeds `still`,
+/// 0 where the signal stands still. Offline only: the centred window looks ahead.
+pub fn rate_sign(xdot: &[f64], still: f64) -> Vec<f64> {
+    xdot.iter()
+        .map(|v| if v.abs() > still { v.signum() } else { 0.0 })
+        .collect()
+}
+
+/// The stop operator of half-width `r` (an elastic–perfectly-plastic element, a Jenkins
+/// element): it follows increments of `x` but stays within ±r, starting at 0. The play
+/// operator (backlash of total width 2r) is `x − stop`.
+pub fn stop_operator(x: &[f64], r: f64) -> Vec<f64> {
+    let mut s = 0.0f64;
+    let mut prev = x.first().copied().unwrap_or(0.0);
+    x.iter()
+        .map(|&xi| {
+            s = (s + xi - prev).clamp(-r, r);
+            prev = xi;
+            s
+        })
+        .collect()
+}
+
+/// `x` at times `t − delay` by linear interpolation (held at the ends).
+pub fn shifted(t: &[f64], x: &[f64], delay: f64) -> Vec<f64> {
+    if delay == 0.0 {
+        return x.to_vec();
+    }
+    t.iter().map(|&ti| interp(t, x, ti - delay)).collect()
+}
+
+/// Linear interpolation of (t, x) at `at`; `t` increasing; held at the ends.
+pub fn interp(t: &[f64], x: &[f64], at: f64) -> f64 {
+    let n = t.len();
+    if n == 0 {
+        return f64::NAN;
+    }
+    if at <= t[0] {
+        return x[0];
+    }
+    if at >= t[n - 1] {
+        return x[n - 1];
+    }
+    let k = t.partition_point(|&v| v <= at);
+    let (t0, t1) = (t[k - 1], t[k]);
+    let w = if t1 > t0 { (at - t0) / (t1 - t0) } else { 0.0 };
+    x[k - 1] + w * (x[k] - x[k - 1])
+}
+
+/// Resamples (t, x) onto a uniform grid of step `dt`, splitting at gaps longer than
+/// `max_gap`: returns the uniform segments.
+pub fn uniform_segments(t: &[f64], x: &[f64], dt: f64, max_gap: f64) -> Vec<Vec<f64>> {
+    let mut out = Vec::new();
+    let mut start = 0;
+    for i in 1..=t.len() {
+        if i == t.len() || t[i] - t[i - 1] > max_gap {
+            let (ts, xs) = (&t[start..i], &x[start..i]);
+            if ts.len() >= 2 && dt > 0.0 {
+                let n = ((ts[ts.len() - 1] - ts[0]) / dt).floor() as usize + 1;
+                out.push(
+                    (0..n)
+                        .map(|k| interp(ts, xs, ts[0] + k as f64 * dt))
+                        .collect(),
+                );
+            }
+            start = i;
+        }
+    }
+    out
+}
+
+/// The median of the positive steps of `t`.
+pub fn median_step(t: &[f64]) -> f64 {
+    let mut d: Vec<f64> = t
+        .windows(2)
+        .map(|w| w[1] - w[0])
+        .filter(|d| *d > 0.0)
+        .collect();
+    if d.is_empty() {
+        return 0.0;
+    }
+    d.sort_by(f64::total_cmp);
+    d[d.len() / 2]
+}
+
+/// Sudden steps of a signal: sample-to-sample changes over ten times the 90th percentile of
+/// all changes, counted once per burst (within 3 samples). In a slow, smooth test these are
+/// stick-slip events (the spring sticks, then slips) or sensor glitches.
+pub fn steps(x: &[f64]) -> usize {
+    let d: Vec<f64> = x.windows(2).map(|w| (w[1] - w[0]).abs()).collect();
+    if d.len() < 20 {
+        return 0;
+    }
+    let mut sorted = d.clone();
+    sorted.sort_by(f64::total_cmp);
+    let p90 = sorted[sorted.len() * 9 / 10];
+    if p90 <= 0.0 {
+        return 0;
+    }
+    let mut count = 0;
+    let mut last: Option<usize> = None;
+    for (i, v) in d.iter().enumerate() {
+        if *v > 10.0 * p90 {
+            if last.is_none_or(|l| i > l + 3) {
+                count += 1;
+            }
+            last = Some(i);
+        }
+    }
+    count
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn local_rates_are_exact_on_a_parabola_with_irregular_steps() {
+        // x = 3 + 2t − 5t²: ẋ = 2 − 10t, ẍ = −10, at irregular times.
+        let t: Vec<f64> = (0..200)
+            .map(|k| k as f64 * 0.01 + 0.003 * ((k * 7 % 5) as f64))
+            .collect();
+        let x: Vec<f64> = t.iter().map(|t| 3.0 + 2.0 * t - 5.0 * t * t).collect();
+        let (v, a) = local_rates(&t, &x, 0.03);
+        for i in 0..t.len() {
+            assert!((v[i] - (2.0 - 10.0 * t[i])).abs() < 1e-8, "{i}: {}", v[i]);
+            assert!((a[i] + 10.0).abs() < 1e-6, "{i}: {}", a[i]);
+        }
+    }
+
+    #[test]
+    fn rate_sign_is_zero_when_still() {
+        assert_eq!(
+            rate_sign(&[0.5, 0.01, -0.2, 0.0], 0.05),
+            [1.0, 0.0, -1.0, 0.0]
+        );
+    }
+
+    #[test]
+    fn play_is_the_backlash_of_the_simulator() {
+        // Backlash of total width 0.2: output lags the input by 0.1 once the play is taken up.
+        let x = [0.0, 0.05, 0.3, 0.25, 0.1, -0.2];
+        let s = stop_operator(&x, 0.1);
+        let play: Vec<f64> = x.iter().zip(&s).map(|(x, s)| x - s).collect();
+        let want = [0.0, 0.0, 0.2, 0.2, 0.2, -0.1];
+        for (p, w) in play.iter().zip(want) {
+            assert!((p - w).abs() < 1e-12, "{play:?}");
+        }
+    }
+
+    #[test]
+    fn shift_and_resample_interpolate_linearly() {
+        let t = [0.0, 1.0, 3.0];
+        let x = [0.0, 2.0, 6.0];
+        assert_eq!(shifted(&t, &x, 0.5), vec![0.0, 1.0, 5.0]);
+        let seg = uniform_segments(&t, &x, 0.5, 10.0);
+        assert_eq!(seg, vec![vec![0.0, 1.0, 2.0, 3.0, 4.0, 5.0, 6.0]]);
+        assert_eq!(uniform_segments(&t, &x, 0.5, 1.5).len(), 1);
+        assert!((median_step(&[0.0, 0.1, 0.3, 0.4]) - 0.1).abs() < 1e-15);
+    }
+
+    #[test]
+    fn steps_count_bursts_of_sudden_change() {
+        let mut x: Vec<f64> = (0..200).map(|i| i as f64 * 0.01).collect();
+        for v in &mut x[50..] {
+            *v += 1.0;
+        }
+        for v in &mut x[120..] {
+            *v -= 0.5;
+        }
+        for v in &mut x[121..] {
+            *v -= 0.5;
+        }
+        assert_eq!(steps(&x), 2);
+        let smooth: Vec<f64> = (0..200).map(|i| (i as f64 * 0.05).sin()).collect();
+        assert_eq!(steps(&smooth), 0);
+    }
+}

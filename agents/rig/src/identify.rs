@@ -1,0 +1,448 @@
+//! `rig identify`: close the loop with measured data — fit a declared model, trace its
+//! residual to effects it lacks, add those that pay off on held-out data, and report the
+//! error before and after (JSON, Markdown, PNG plots). The maths is
+//! `rig_model::identify`; this edge reads files, draws and writes.
+
+use std::path::{Path, PathBuf};
+
+use clap::ValueEnum;
+use rig_model::identify::{Declared, Effect, Holdout, Identified, Options, Run, identify};
+use serde_json::{Map, Value, json};
+
+use crate::error::CliError;
+use crate::identify_data::{ColumnMap, Sampling, read};
+
+#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
+pub enum ModelArg {
+    /// Paper B's restoring-torque model (hysteresis from deflection alone): τ from φ and d
+    Restoring,
+    /// A linear spring with offset, τ = k·φ + c: the plainest start
+    Linear,
+    /// Paper A's link equation I·q̈ + N·q̇ = τ (columns t, q, tau: the net torque on the link)
+    Link,
+}
+
+/// Find what a model lacks in measured data and report the error before and after.
+///
+/// Fits the declared model (--model) on --data, then tries a library of named effects —
+/// hysteresis, coulomb_friction, viscous_friction, backlash, hard_stop, geometric_stiffness,
+/// sensor_delay, offset, stiffness_drift, gravity, periodic_ripple — adding one at a time the
+/// effect that lowers the error most on validation blocks of the fit data, while it lowers it
+/// by at least --min-gain. Every "before" and "after" figure is on held-out data: the
+/// --holdout files, or else every fourth time block of each --data file (a quarter).
+///
+/// Writes OUT.json, OUT.md (a summary) and OUT-fit.png, OUT-residual.png beside it.
+///
+/// Examples:
+///   rig sim --scenario agents/sim/scenarios/lever-bench-friction.toml --out bench.csv
+///   rig identify --data bench.csv --report bench-id.json
+///   rig identify --model linear --columns t=time,phi=displacement:deg,tau=torque_out \
+///       --data kt-9-1-70-5-….csv --holdout kt-9-2-71-5-….csv --report spring5.json
+///   rig identify --model link --data awas.csv --report link.json
+#[derive(Debug, clap::Args)]
+#[command(verbatim_doc_comment)]
+pub struct Args {
+    /// Measured data to fit: CSV (header row) or an MCAP recording of the rig. Repeatable
+    #[arg(long, required = true, value_name = "FILE")]
+    data: Vec<PathBuf>,
+    /// Data held out of the fit, on which every before/after figure is computed. Repeatable.
+    /// Default: every fourth time block of each --data file
+    #[arg(long, value_name = "FILE")]
+    holdout: Vec<PathBuf>,
+    /// Which CSV column is which quantity, with units: QUANTITY=COLUMN[:UNIT],…
+    /// Quantities: t (s|ms), phi (rad|deg), tau (Nm|Nmm), d (mm|m), q (rad|deg).
+    /// Default: columns named t, phi, tau, d, q in s, rad, N·m, mm, rad
+    #[arg(long, value_name = "MAP", verbatim_doc_comment)]
+    columns: Option<String>,
+    /// The declared model to start from
+    #[arg(long, value_enum, default_value = "restoring")]
+    model: ModelArg,
+    /// Rig config: a lever joint in it makes geometric_stiffness a candidate
+    #[arg(long, value_name = "FILE")]
+    config: Option<PathBuf>,
+    /// Joint of an MCAP recording to identify (default: the first)
+    #[arg(long, value_name = "NAME")]
+    joint: Option<String>,
+    /// Smallest relative drop of the validation RMSE that adds an effect
+    #[arg(long, default_value_t = 0.02, value_name = "FRACTION")]
+    min_gain: f64,
+    /// Half-window of the centred local fits that give rates and accelerations [ms].
+    /// Default: 20 for the joint-torque models, 10 for the link equation (whose q̈ a wider
+    /// window attenuates: 5 % less inertia at 9 Hz with 20 ms)
+    #[arg(long, value_name = "MS")]
+    rate_window_ms: Option<f64>,
+    /// Where to write the JSON report (the .md and .png files go beside it)
+    #[arg(long, value_name = "OUT.json")]
+    report: PathBuf,
+}
+
+pub fn run(a: &Args) -> Result<(), CliError> {
+    if !(a.min_gain.is_finite() && (0.0..1.0).contains(&a.min_gain)) {
+        return Err(CliError::Invalid(format!(
+            "--min-gain must be in [0, 1), got {}",
+            a.min_gain
+        )));
+    }
+    let rate_window_ms = a.rate_window_ms.unwrap_or(if a.model == ModelArg::Link {
+        10.0
+    } else {
+        20.0
+    });
+    if !(rate_window_ms.is_finite() && rate_window_ms > 0.0) {
+        return Err(CliError::Invalid(format!(
+            "--rate-window-ms must be > 0, got {rate_window_ms}"
+        )));
+    }
+    let map = ColumnMap::parse(a.columns.as_deref())?;
+    let lever = match &a.config {
+        Some(path) => {
+            let cfg = rig_config::load(path)?;
+            cfg.joints.iter().find_map(|j| match j.kind {
+                rig_config::JointKind::Lever { vsa, .. } => Some(vsa),
+                _ => None,
+            })
+        }
+        None => None,
+    };
+    let load = |files: &[PathBuf]| -> Result<(Vec<Run>, Vec<Sampling>), CliError> {
+        let mut runs = Vec::new();
+        let mut smp = Vec::new();
+        for f in files {
+            let (r, s) = read(f, &map, a.joint.as_deref())?;
+            runs.push(r);
+            smp.push(s);
+        }
+        Ok((runs, smp))
+    };
+    let (fit_runs, mut sampling) = load(&a.data)?;
+    let (held_runs, held_sampling) = load(&a.holdout)?;
+    sampling.extend(held_sampling);
+    for s in &sampling {
+        let dropped: usize = s.missing.values().sum::<usize>() + s.time_not_increasing;
+        if dropped > 0 || s.irregular || s.gaps > 0 {
+            eprintln!(
+                "rig identify: {}: {} of {} rows used ({} missing values, {} out of order); sampling {:.1} Hz median, step p99 {:.1} ms, {} gaps{}",
+                s.file,
+                s.used,
+                s.rows,
+                s.missing.values().sum::<usize>(),
+                s.time_not_increasing,
+                1.0 / s.dt_median_s,
+                s.dt_p99_s * 1e3,
+                s.gaps,
+                if s.irregular { " (irregular)" } else { "" }
+            );
+        }
+    }
+    let opts = Options {
+        model: match a.model {
+            ModelArg::Restoring => Declared::Restoring,
+            ModelArg::Linear => Declared::Linear,
+            ModelArg::Link => Declared::Link,
+        },
+        lever,
+        min_gain: a.min_gain,
+        rate_window: rate_window_ms * 1e-3,
+        ..Options::default()
+    };
+    let holdout = if held_runs.is_empty() {
+        Holdout::Blocks
+    } else {
+        Holdout::Runs(&held_runs)
+    };
+    let pb = crate::progress::bar(1, "identify: candidate fits");
+    let res = identify(&fit_runs, holdout, &opts, &mut |done, total| {
+        pb.set_length(total as u64);
+        pb.set_position(done as u64);
+    })
+    .map_err(|e| CliError::Invalid(e.to_string()))?;
+    pb.finish_and_clear();
+
+    let notes = notes(&res, &fit_runs, &held_runs);
+    let report = report_json(a, &res, &sampling, &notes, held_runs.is_empty());
+    if let Some(dir) = a.report.parent().filter(|p| !p.as_os_str().is_empty()) {
+        std::fs::create_dir_all(dir)?;
+    }
+    std::fs::write(
+        &a.report,
+        serde_json::to_string_pretty(&report).unwrap_or_default(),
+    )?;
+    let (md, fit_png, res_png) = (
+        a.report.with_extension("md"),
+        sibling(&a.report, "-fit.png"),
+        sibling(&a.report, "-residual.png"),
+    );
+    crate::identify_plots::fit(&fit_png, &res).map_err(CliError::Invalid)?;
+    crate::identify_plots::residual(&res_png, &res).map_err(CliError::Invalid)?;
+    std::fs::write(&md, markdown(a, &res, &notes, &fit_png, &res_png))?;
+    print_summary(&res, &notes);
+    eprintln!(
+        "rig identify: wrote {}, {}, {}, {}",
+        a.report.display(),
+        md.display(),
+        fit_png.display(),
+        res_png.display()
+    );
+    Ok(())
+}
+
+/// `dir/stem` + `suffix`.
+fn sibling(p: &Path, suffix: &str) -> PathBuf {
+    let stem = p
+        .file_stem()
+        .map_or_else(|| "report".into(), |s| s.to_string_lossy().into_owned());
+    p.with_file_name(format!("{stem}{suffix}"))
+}
+
+/// Honest remarks on the data: offsets that differ between runs, lags, stick-slip steps.
+fn notes(res: &Identified, fit: &[Run], held: &[Run]) -> Vec<String> {
+    let mut n = Vec::new();
+    let peak = res
+        .heldout
+        .measured
+        .iter()
+        .fold(0.0f64, |m, v| m.max(v.abs()));
+    for (run, b) in &res.bias {
+        if b.abs() > 0.3 * res.after.rmse && b.abs() > 0.01 * peak {
+            n.push(format!(
+                "offset: on {run} the model is off by {b:+.3} N·m on average ({:.0} % of the held-out RMSE) — the torque or deflection zero differs from the fit data's",
+                100.0 * b.abs() / res.after.rmse
+            ));
+        }
+    }
+    if let Some(d) = res.effects.iter().find(|e| e.effect == Effect::SensorDelay) {
+        let delay = d.params.first().map_or(0.0, |p| p.1);
+        n.push(format!(
+            "lag: the torque {} the deflection by {:.1} ms",
+            if delay >= 0.0 { "lags" } else { "leads" },
+            delay.abs() * 1e3
+        ));
+    }
+    for r in fit.iter().chain(held) {
+        let steps = rig_model::identify::signals::steps(&r.tau);
+        if steps > 0 {
+            n.push(format!(
+                "steps: {steps} sudden jumps of the torque in {} (over 10× the 90th percentile of its sample-to-sample change: stick-slip, or sensor glitches)",
+                r.name
+            ));
+        }
+    }
+    for s in &res.residual.structure {
+        n.push(format!("unexplained: {s}"));
+    }
+    n
+}
+
+fn params_json(p: &[(&str, f64)]) -> Value {
+    Value::Object(
+        p.iter()
+            .map(|(k, v)| (k.to_string(), num(*v)))
+            .collect::<Map<String, Value>>(),
+    )
+}
+
+/// A JSON number, or null when not finite.
+fn num(v: f64) -> Value {
+    serde_json::Number::from_f64(v).map_or(Value::Null, Value::Number)
+}
+
+fn report_json(
+    a: &Args,
+    res: &Identified,
+    sampling: &[Sampling],
+    notes: &[String],
+    blocks: bool,
+) -> Value {
+    let errors = |e: &rig_model::identify::Errors| json!({"rmse": num(e.rmse), "mae": num(e.mae)});
+    let holdout = if blocks {
+        json!({"fraction": num(res.holdout_samples as f64 / (res.holdout_samples + res.fit_samples) as f64), "scheme": "every fourth of 12 time blocks per file"})
+    } else {
+        json!({"files": a.holdout.iter().map(|p| p.display().to_string()).collect::<Vec<_>>()})
+    };
+    let mut v = json!({
+        "model": res.model.name(),
+        "declared_effects": res.model.declares().iter().map(|e| e.name()).collect::<Vec<_>>(),
+        "samples": res.fit_samples + res.holdout_samples,
+        "fit_samples": res.fit_samples,
+        "holdout_samples": res.holdout_samples,
+        "data": a.data.iter().map(|p| p.display().to_string()).collect::<Vec<_>>(),
+        "holdout": holdout,
+        "before": errors(&res.before),
+        "after": errors(&res.after),
+        "base": {"before": params_json(&res.base_before), "after": params_json(&res.base_after)},
+        "effects": res.effects.iter().map(|e| json!({
+            "name": e.effect.name(),
+            "params": params_json(&e.params),
+            "gain_rmse": num(e.gain_rmse),
+            "validation_gain": num(e.validation_gain),
+            "meaning": e.effect.meaning(),
+        })).collect::<Vec<_>>(),
+        "refused": res.refused.iter().map(|r| json!({"name": r.effect.name(), "best_validation_gain": num(r.best_gain), "why": r.why})).collect::<Vec<_>>(),
+        "not_applicable": res.not_applicable.iter().map(|(e, why)| json!({"name": e.name(), "why": why})).collect::<Vec<_>>(),
+        "residual": {
+            "white": res.residual.white,
+            "max_autocorr": num(res.residual.max_autocorr),
+            "max_autocorr_lag_s": num(res.residual.max_autocorr_lag_s),
+            "band": num(res.residual.band),
+            "lags": res.residual.lags,
+            "cross": res.residual.cross.iter().map(|c| json!({"input": c.input, "max_abs": num(c.max_abs), "lag_s": num(c.lag_s)})).collect::<Vec<_>>(),
+            "structure": res.residual.structure,
+        },
+        "bias": res.bias.iter().map(|(r, b)| json!({"run": r, "mean_residual_nm": num(*b)})).collect::<Vec<_>>(),
+        "sampling": sampling,
+        "dead_band_rad": num(res.dead_band),
+        "min_gain": num(a.min_gain),
+        "notes": notes,
+    });
+    if res.model == Declared::Link {
+        let get = |k: &str| {
+            res.base_after
+                .iter()
+                .find(|p| p.0 == k)
+                .map_or(f64::NAN, |p| p.1)
+        };
+        v["inertia"] = num(get("inertia_kgm2"));
+        v["damping"] = num(get("damping_nms_per_rad"));
+    }
+    v
+}
+
+fn effect_line(e: &rig_model::identify::Found) -> String {
+    let p: Vec<String> = e
+        .params
+        .iter()
+        .map(|(k, v)| format!("{k} = {}", sig(*v)))
+        .collect();
+    format!(
+        "{} ({}): held-out RMSE lower by {} N·m",
+        e.effect.name(),
+        p.join(", "),
+        sig(e.gain_rmse)
+    )
+}
+
+/// Four significant digits.
+fn sig(v: f64) -> String {
+    if v == 0.0 || !v.is_finite() {
+        return format!("{v}");
+    }
+    let mag = v.abs().log10().floor() as i32;
+    if !(-3..5).contains(&mag) {
+        format!("{v:.3e}")
+    } else {
+        format!("{:.*}", (3 - mag).max(0) as usize, v)
+    }
+}
+
+fn print_summary(res: &Identified, notes: &[String]) {
+    println!(
+        "model {}: held-out RMSE {} → {} N·m, MAE {} → {} N·m ({} fit, {} held-out samples)",
+        res.model.name(),
+        sig(res.before.rmse),
+        sig(res.after.rmse),
+        sig(res.before.mae),
+        sig(res.after.mae),
+        res.fit_samples,
+        res.holdout_samples
+    );
+    if res.effects.is_empty() {
+        println!("no effect added: none lowered the validation error enough");
+    }
+    for e in &res.effects {
+        println!("  + {}", effect_line(e));
+    }
+    for n in notes {
+        println!("  note: {n}");
+    }
+}
+
+fn markdown(
+    a: &Args,
+    res: &Identified,
+    notes: &[String],
+    fit_png: &Path,
+    res_png: &Path,
+) -> String {
+    let name = |p: &Path| {
+        p.file_name()
+            .map_or_else(String::new, |n| n.to_string_lossy().into_owned())
+    };
+    let mut s = String::new();
+    s.push_str(&format!(
+        "# rig identify — declared model `{}`\n\n",
+        res.model.name()
+    ));
+    s.push_str(&format!(
+        "Fit on {}; held out: {}.\n\n",
+        a.data
+            .iter()
+            .map(|p| format!("`{}`", name(p)))
+            .collect::<Vec<_>>()
+            .join(", "),
+        if a.holdout.is_empty() {
+            format!(
+                "every fourth time block ({:.0} % of the samples)",
+                100.0 * res.holdout_samples as f64 / (res.holdout_samples + res.fit_samples) as f64
+            )
+        } else {
+            a.holdout
+                .iter()
+                .map(|p| format!("`{}`", name(p)))
+                .collect::<Vec<_>>()
+                .join(", ")
+        }
+    ));
+    s.push_str("| held-out | RMSE [N·m] | MAE [N·m] |\n|---|---|---|\n");
+    s.push_str(&format!(
+        "| before | {} | {} |\n| after | {} | {} |\n\n",
+        sig(res.before.rmse),
+        sig(res.before.mae),
+        sig(res.after.rmse),
+        sig(res.after.mae)
+    ));
+    s.push_str("## Effects added\n\n");
+    if res.effects.is_empty() {
+        s.push_str("None: no candidate lowered the validation error by the required fraction.\n");
+    }
+    for e in &res.effects {
+        s.push_str(&format!("- {} — {}\n", effect_line(e), e.effect.meaning()));
+    }
+    s.push_str("\n## Refused (best relative validation gain)\n\n");
+    for r in &res.refused {
+        s.push_str(&format!(
+            "- {}: {:+.1} % — {}\n",
+            r.effect.name(),
+            100.0 * r.best_gain,
+            r.why
+        ));
+    }
+    for (e, why) in &res.not_applicable {
+        s.push_str(&format!("- {}: not tried — {why}\n", e.name()));
+    }
+    s.push_str(&format!(
+        "\n## Residual (held out, after)\n\nWhite: {} (largest autocorrelation {:.3} at {:.3} s; band ±{:.3} over {} lags).\n\n",
+        if res.residual.white { "yes" } else { "no" },
+        res.residual.max_autocorr,
+        res.residual.max_autocorr_lag_s,
+        res.residual.band,
+        res.residual.lags
+    ));
+    for c in &res.residual.cross {
+        s.push_str(&format!(
+            "- cross-correlation with the {}: {:.3} at {:+.3} s\n",
+            c.input, c.max_abs, c.lag_s
+        ));
+    }
+    if !notes.is_empty() {
+        s.push_str("\n## Notes\n\n");
+        for n in notes {
+            s.push_str(&format!("- {n}\n"));
+        }
+    }
+    s.push_str(&format!(
+        "\n![measured vs model]({})\n\n![residual]({})\n",
+        name(fit_png),
+        name(res_png)
+    ));
+    s
+}

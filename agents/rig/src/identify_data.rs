@@ -1,0 +1,391 @@
+//! Measured data in, SI out: CSV files with a column map and units, or MCAP recordings of
+//! the rig. Missing values and out-of-order time are dropped and counted, never guessed.
+
+use std::collections::BTreeMap;
+use std::path::Path;
+
+use rig_model::identify::Run;
+use rig_model::identify::signals::median_step;
+use rig_protocol::{JointSample, decode};
+use serde::Serialize;
+
+use crate::error::CliError;
+
+/// Units of a quantity with their factors to SI; the first is the default.
+type Units = &'static [(&'static str, f64)];
+
+/// The quantities `rig identify` reads: name, meaning, units.
+const QUANTITIES: [(&str, &str, Units); 5] = [
+    ("t", "time", &[("s", 1.0), ("ms", 1e-3)]),
+    (
+        "phi",
+        "deflection",
+        &[("rad", 1.0), ("deg", std::f64::consts::PI / 180.0)],
+    ),
+    ("tau", "torque", &[("Nm", 1.0), ("Nmm", 1e-3)]),
+    ("d", "pivot position", &[("mm", 1e-3), ("m", 1.0)]),
+    (
+        "q",
+        "link angle",
+        &[("rad", 1.0), ("deg", std::f64::consts::PI / 180.0)],
+    ),
+];
+
+/// Where each quantity comes from: a column name and the factor to SI.
+#[derive(Debug, Clone, PartialEq)]
+pub struct ColumnMap {
+    pub columns: BTreeMap<&'static str, (String, f64, &'static str)>,
+    /// Quantities named explicitly (a missing column is then an error, not "absent").
+    pub explicit: Vec<&'static str>,
+}
+
+impl ColumnMap {
+    /// Parses `t=time,phi=displacement:deg,tau=torque_out`. Unnamed quantities keep their
+    /// default column (their own name) and unit (s, rad, N·m, mm for d, rad).
+    pub fn parse(spec: Option<&str>) -> Result<Self, CliError> {
+        let mut columns = BTreeMap::new();
+        for (q, _, units) in QUANTITIES {
+            columns.insert(q, (q.to_string(), units[0].1, units[0].0));
+        }
+        let mut explicit = Vec::new();
+        let bad = |m: String| CliError::Invalid(format!("--columns: {m}"));
+        for item in spec
+            .unwrap_or("")
+            .split(',')
+            .filter(|s| !s.trim().is_empty())
+        {
+            let (q, rest) = item
+                .split_once('=')
+                .ok_or_else(|| bad(format!("\"{item}\" is not QUANTITY=COLUMN[:UNIT]")))?;
+            let q = q.trim();
+            let Some((name, _, units)) = QUANTITIES.iter().find(|(n, _, _)| *n == q) else {
+                return Err(bad(format!(
+                    "unknown quantity \"{q}\"; known: t, phi, tau, d, q"
+                )));
+            };
+            let (col, unit) = match rest.split_once(':') {
+                Some((c, u)) => (c.trim(), Some(u.trim())),
+                None => (rest.trim(), None),
+            };
+            if col.is_empty() {
+                return Err(bad(format!("{q}: no column name")));
+            }
+            let (u, f) = match unit {
+                None => (units[0].0, units[0].1),
+                Some(u) => match units.iter().find(|(n, _)| *n == u) {
+                    Some((n, f)) => (*n, *f),
+                    None => {
+                        let ok: Vec<&str> = units.iter().map(|(n, _)| *n).collect();
+                        return Err(bad(format!(
+                            "{q}: unit \"{u}\" is not one of {}",
+                            ok.join(", ")
+                        )));
+                    }
+                },
+            };
+            columns.insert(*name, (col.to_string(), f, u));
+            explicit.push(*name);
+        }
+        Ok(Self { columns, explicit })
+    }
+}
+
+/// What reading a file found.
+#[derive(Debug, Clone, Serialize)]
+pub struct Sampling {
+    pub file: String,
+    pub rows: usize,
+    pub used: usize,
+    /// Rows dropped for a missing or unreadable value, per quantity.
+    pub missing: BTreeMap<String, usize>,
+    /// Rows dropped because time did not increase.
+    pub time_not_increasing: usize,
+    pub dt_median_s: f64,
+    pub dt_p99_s: f64,
+    pub dt_max_s: f64,
+    /// Steps longer than 5 median steps.
+    pub gaps: usize,
+    /// Sampling rate varies: p99 step over 1.5 median steps.
+    pub irregular: bool,
+    /// The columns read, with their units.
+    pub columns: BTreeMap<String, String>,
+}
+
+fn sampling(file: &str, rows: usize, t: &[f64]) -> Sampling {
+    let mut steps: Vec<f64> = t.windows(2).map(|w| w[1] - w[0]).collect();
+    steps.sort_by(f64::total_cmp);
+    let med = median_step(t);
+    let p99 = steps.get(steps.len() * 99 / 100).copied().unwrap_or(0.0);
+    Sampling {
+        file: file.to_string(),
+        rows,
+        used: t.len(),
+        missing: BTreeMap::new(),
+        time_not_increasing: 0,
+        dt_median_s: med,
+        dt_p99_s: p99,
+        dt_max_s: steps.last().copied().unwrap_or(0.0),
+        gaps: steps.iter().filter(|s| **s > 5.0 * med).count(),
+        irregular: p99 > 1.5 * med,
+        columns: BTreeMap::new(),
+    }
+}
+
+/// Reads a CSV or MCAP file into a run.
+pub fn read(
+    path: &Path,
+    map: &ColumnMap,
+    joint: Option<&str>,
+) -> Result<(Run, Sampling), CliError> {
+    let is_mcap = path
+        .extension()
+        .is_some_and(|e| e.eq_ignore_ascii_case("mcap"));
+    if is_mcap {
+        read_mcap(path, joint)
+    } else {
+        read_csv(path, map)
+    }
+}
+
+fn read_csv(path: &Path, map: &ColumnMap) -> Result<(Run, Sampling), CliError> {
+    let name = path.display().to_string();
+    let bad = |m: String| CliError::Invalid(format!("{name}: {m}"));
+    let mut rdr = csv::ReaderBuilder::new()
+        .flexible(true)
+        .from_path(path)
+        .map_err(|e| bad(e.to_string()))?;
+    let headers: Vec<String> = rdr
+        .headers()
+        .map_err(|e| bad(e.to_string()))?
+        .iter()
+        .map(|h| h.trim().to_string())
+        .collect();
+    // Which quantities are present, and where.
+    let mut idx: BTreeMap<&'static str, (usize, f64)> = BTreeMap::new();
+    let mut cols_used = BTreeMap::new();
+    for (q, (col, f, unit)) in &map.columns {
+        match headers.iter().position(|h| h == col) {
+            Some(i) => {
+                idx.insert(q, (i, *f));
+                cols_used.insert(q.to_string(), format!("{col} [{unit}]"));
+            }
+            None if map.explicit.contains(q) || ["t", "tau"].contains(q) => {
+                return Err(bad(format!(
+                    "no column \"{col}\" for {q}; the header has: {}{}",
+                    headers.join(", "),
+                    if map.explicit.is_empty() {
+                        " (map columns with --columns, e.g. t=time,phi=displacement:deg,tau=torque_out)"
+                    } else {
+                        ""
+                    }
+                )));
+            }
+            None => {}
+        }
+    }
+    let mut cols: BTreeMap<&'static str, Vec<f64>> = idx.keys().map(|q| (*q, Vec::new())).collect();
+    let mut missing: BTreeMap<String, usize> = BTreeMap::new();
+    let (mut rows, mut back) = (0usize, 0usize);
+    let mut last_t = f64::NEG_INFINITY;
+    for rec in rdr.records() {
+        let rec = rec.map_err(|e| bad(e.to_string()))?;
+        rows += 1;
+        let mut vals = Vec::with_capacity(idx.len());
+        let mut ok = true;
+        for (q, (i, f)) in &idx {
+            let v = rec
+                .get(*i)
+                .and_then(|s| s.trim().parse::<f64>().ok())
+                .filter(|v| v.is_finite());
+            match v {
+                Some(v) => vals.push((*q, v * f)),
+                None => {
+                    *missing.entry(q.to_string()).or_default() += 1;
+                    ok = false;
+                }
+            }
+        }
+        if !ok {
+            continue;
+        }
+        let t = vals
+            .iter()
+            .find(|(q, _)| *q == "t")
+            .map_or(f64::NAN, |v| v.1);
+        if t <= last_t {
+            back += 1;
+            continue;
+        }
+        last_t = t;
+        for (q, v) in vals {
+            if let Some(c) = cols.get_mut(q) {
+                c.push(v);
+            }
+        }
+    }
+    let mut take = |q: &str| cols.remove(q);
+    let run = Run {
+        name: file_name(path),
+        t: take("t").unwrap_or_default(),
+        tau: take("tau").unwrap_or_default(),
+        phi: take("phi"),
+        d: take("d"),
+        q: take("q"),
+    };
+    if run.t.len() < 20 {
+        return Err(bad(format!(
+            "{} usable rows of {rows}; at least 20 are needed",
+            run.t.len()
+        )));
+    }
+    let mut s = sampling(&name, rows, &run.t);
+    s.missing = missing;
+    s.time_not_increasing = back;
+    s.columns = cols_used;
+    Ok((run, s))
+}
+
+/// One joint of an MCAP recording: its acquisition-stamped samples with a torque sensor.
+fn read_mcap(path: &Path, joint: Option<&str>) -> Result<(Run, Sampling), CliError> {
+    let name = path.display().to_string();
+    let bad = |m: String| CliError::Invalid(format!("{name}: {m}"));
+    let (msgs, _) = crate::record::read_all(&path.to_path_buf())?;
+    let mut by_joint: BTreeMap<String, Vec<JointSample>> = BTreeMap::new();
+    for m in &msgs {
+        if let Some(rest) = m.topic.strip_suffix("/sample")
+            && let Some(j) = rest.rsplit('/').next()
+            && let Ok(s) = decode::<JointSample>(&m.data)
+        {
+            by_joint.entry(j.to_string()).or_default().push(s);
+        }
+    }
+    let names: Vec<String> = by_joint.keys().cloned().collect();
+    let j = match joint {
+        Some(j) => j.to_string(),
+        None => names
+            .first()
+            .cloned()
+            .ok_or_else(|| bad("holds no joint samples".into()))?,
+    };
+    let mut samples = by_joint.remove(&j).ok_or_else(|| {
+        bad(format!(
+            "holds no samples of joint \"{j}\"; it has: {}",
+            names.join(", ")
+        ))
+    })?;
+    samples.sort_by_key(|s| s.t_acq_ns);
+    let rows = samples.len();
+    let t0 = samples.first().map_or(0, |s| s.t_acq_ns);
+    let (mut t, mut tau, mut phi, mut d, mut q) = (vec![], vec![], vec![], vec![], vec![]);
+    let mut no_torque = 0;
+    let mut last = None;
+    let mut back = 0;
+    for s in &samples {
+        let Some(tq) = s.torque_nm else {
+            no_torque += 1;
+            continue;
+        };
+        if last.is_some_and(|l| s.t_acq_ns <= l) {
+            back += 1;
+            continue;
+        }
+        last = Some(s.t_acq_ns);
+        t.push((s.t_acq_ns - t0) as f64 * 1e-9);
+        tau.push(tq);
+        phi.push(s.deflection_rad);
+        d.push(s.pivot_m.unwrap_or(0.0));
+        q.push(s.motor_rad + s.deflection_rad);
+    }
+    if t.len() < 20 {
+        return Err(bad(format!(
+            "joint \"{j}\": {} samples carry a torque-sensor reading (of {rows}); identification needs the sensor",
+            t.len()
+        )));
+    }
+    let mut smp = sampling(&format!("{name} (joint {j})"), rows, &t);
+    if no_torque > 0 {
+        smp.missing.insert("tau".into(), no_torque);
+    }
+    smp.time_not_increasing = back;
+    smp.columns = [
+        ("t", "t_acq_ns [ns]"),
+        ("phi", "deflection_rad [rad]"),
+        ("tau", "torque_nm [Nm]"),
+        ("d", "pivot_m [m]"),
+        ("q", "motor_rad + deflection_rad [rad]"),
+    ]
+    .into_iter()
+    .map(|(a, b)| (a.to_string(), b.to_string()))
+    .collect();
+    Ok((
+        Run {
+            name: format!("{} ({j})", file_name(path)),
+            t,
+            tau,
+            phi: Some(phi),
+            d: Some(d),
+            q: Some(q),
+        },
+        smp,
+    ))
+}
+
+fn file_name(p: &Path) -> String {
+    p.file_name().map_or_else(
+        || p.display().to_string(),
+        |n| n.to_string_lossy().into_owned(),
+    )
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn column_maps_convert_units_and_name_bad_parts() {
+        let m = ColumnMap::parse(Some("t=time,phi=displacement:deg,tau=torque_out:Nmm")).unwrap();
+        assert_eq!(m.columns["phi"].0, "displacement");
+        assert!((m.columns["phi"].1 - std::f64::consts::PI / 180.0).abs() < 1e-15);
+        assert_eq!(m.columns["tau"].1, 1e-3);
+        assert_eq!(m.columns["d"].1, 1e-3, "d defaults to mm");
+        let e = ColumnMap::parse(Some("phi=x:furlong"))
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("furlong") && e.contains("rad, deg"), "{e}");
+        let e = ColumnMap::parse(Some("theta=x")).unwrap_err().to_string();
+        assert!(e.contains("theta"), "{e}");
+    }
+
+    #[test]
+    fn csv_rows_with_missing_values_or_time_going_back_are_dropped_and_counted() {
+        let dir = std::env::temp_dir().join(format!("rig-idata-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let f = dir.join("a.csv");
+        let mut s = String::from(",time,displacement,torque_out\n");
+        for i in 0..40 {
+            let t = i as f64 * 0.01;
+            match i {
+                5 => s.push_str(&format!("{i},{t},,1.0\n")),
+                6 => s.push_str(&format!("{i},{t},nan,1.0\n")),
+                7 => s.push_str(&format!("{i},0.0,1.0,1.0\n")),
+                _ => s.push_str(&format!("{i},{t},{},{}\n", i as f64, 2.0 * i as f64)),
+            }
+        }
+        std::fs::write(&f, s).unwrap();
+        let m = ColumnMap::parse(Some("t=time,phi=displacement:deg,tau=torque_out")).unwrap();
+        let (run, smp) = read(&f, &m, None).unwrap();
+        assert_eq!(smp.rows, 40);
+        assert_eq!(smp.used, 37);
+        assert_eq!(smp.missing["phi"], 2);
+        assert_eq!(smp.time_not_increasing, 1);
+        assert!((run.phi.unwrap()[1] - 1f64.to_radians()).abs() < 1e-15);
+        assert_eq!(smp.gaps, 0);
+        let e = read(&f, &ColumnMap::parse(None).unwrap(), None)
+            .unwrap_err()
+            .to_string();
+        assert!(
+            e.contains("no column \"t\"") && e.contains("--columns"),
+            "{e}"
+        );
+    }
+}

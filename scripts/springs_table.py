@@ -1,0 +1,48 @@
+"""Reads `rig identify` JSON reports (paths on stdin) and prints the springs table."""
+import json
+import os
+import re
+import sys
+
+SHORT = {
+    "hysteresis": lambda p: f"hysteresis (±{p['loop_half_height_nm']:.2f} N·m)",
+    "coulomb_friction": lambda p: f"coulomb_friction ({p['friction_nm']:.2f} N·m)",
+    "viscous_friction": lambda p: f"viscous_friction ({p['damping_nms_per_rad']:.3g} N·m·s/rad)",
+    "backlash": lambda p: f"backlash ({p['width_rad'] * 1e3:.2f} mrad)",
+    "hard_stop": lambda p: f"hard_stop (from {p['onset_rad'] * 1e3:.2f} mrad)",
+    "sensor_delay": lambda p: f"sensor_delay ({p['delay_s'] * 1e3:.1f} ms)",
+    "offset": lambda p: "offset ("
+    + ", ".join(
+        ([f"{p['bias_nm']:+.2f} N·m"] if "bias_nm" in p else [])
+        + ([f"jump {p['jump_nm']:+.2f} N·m at {p['jump_at_s']:.1f} s"] if "jump_nm" in p else [])
+    )
+    + ")",
+    "stiffness_drift": lambda p: "stiffness_drift",
+    "periodic_ripple": lambda p: f"periodic_ripple ({p['amplitude_nm']:.2f} N·m per {p['period_rad'] * 1e3:.2f} mrad)",
+    "geometric_stiffness": lambda p: "geometric_stiffness",
+    "gravity": lambda p: "gravity",
+}
+
+rows = []
+for line in sys.stdin:
+    path = line.strip()
+    if not path:
+        continue
+    r = json.load(open(path))
+    m = re.match(r"spring(\d+)-([\d.]+)nm", os.path.basename(path))
+    spring, amp = int(m.group(1)), float(m.group(2))
+    fit = os.path.basename(r["data"][0]).split("-")[3]
+    held = os.path.basename(r["holdout"]["files"][0]).split("-")[3]
+    k = r["base"]["before"]["stiffness_nm_per_rad"]
+    effects = "; ".join(
+        SHORT[e["name"]](e["params"]) + f" −{e['gain_rmse']:.3f}" for e in r["effects"]
+    ) or "none"
+    bias = max((abs(b["mean_residual_nm"]) for b in r["bias"]), default=0.0)
+    steps = sum(int(n.split()[1]) for n in r["notes"] if n.startswith("steps:"))
+    lag = next((e["params"]["delay_s"] for e in r["effects"] if e["name"] == "sensor_delay"), None)
+    rows.append((spring, amp, fit, held, k, r["before"]["rmse"], r["after"]["rmse"], effects, bias, steps, lag, r["residual"]["white"]))
+
+print("| spring | T [N·m] | fit / held-out test | k linear [N·m/rad] | RMSE before [N·m] | after [N·m] | −% | effects added (held-out RMSE gain, N·m) | held-out bias [N·m] | torque steps | residual white |")
+print("|---|---|---|---|---|---|---|---|---|---|---|")
+for s, a, f, h, k, b, af, e, bias, steps, lag, white in sorted(rows):
+    print(f"| {s} | {a:g} | {f} / {h} | {k:.4g} | {b:.3f} | {af:.3f} | {100 * (1 - af / b):.0f} | {e} | {bias:.3f} | {steps} | {'yes' if white else 'no'} |")

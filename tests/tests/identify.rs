@@ -1,0 +1,451 @@
+//! `rig identify` on simulated data with an effect the declared model lacks (the simulator's
+//! injectable effects, which no config declares): for each, the identify step names it and
+//! at least halves the held-out RMSE; on clean data it adds nothing. End to end: `rig sim`
+//! writes the CSV, `rig identify` reads it and writes the report.
+
+#![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)]
+
+use std::path::{Path, PathBuf};
+use std::process::Command;
+
+use serde_json::Value;
+
+fn bin(name: &str) -> PathBuf {
+    let exe = std::env::current_exe().unwrap();
+    let dir = exe.parent().and_then(Path::parent).unwrap();
+    let p = dir.join(name);
+    assert!(
+        p.exists(),
+        "{} is not built: run `cargo build --workspace` (cargo test --workspace builds it)",
+        p.display()
+    );
+    p
+}
+
+fn workspace(rel: &str) -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("..").join(rel)
+}
+
+fn scratch(name: &str) -> PathBuf {
+    let d = std::env::temp_dir().join(format!("rig-identify-{}", std::process::id()));
+    std::fs::create_dir_all(&d).unwrap();
+    d.join(name)
+}
+
+/// A lever-bench run (paper B's bench at a 9 mm pivot, 30 s at 1 kHz, 14-bit encoder, 1 mN·m
+/// torque noise; peak torque about 0.16 N·m at 0.06 rad).
+fn lever_bench(name: &str, hysteresis: bool, amplitude: f64, effects: &str) -> PathBuf {
+    lever_bench_noise(name, hysteresis, amplitude, 0.001, effects)
+}
+
+fn lever_bench_noise(
+    name: &str,
+    hysteresis: bool,
+    amplitude: f64,
+    noise_nm: f64,
+    effects: &str,
+) -> PathBuf {
+    scenario(
+        name,
+        &format!(
+            "kind = \"lever-bench\"\nduration_s = 30.0\nseed = 3\n[lever_bench]\npivot_mm = 9.0\namplitude_rad = {amplitude}\nhysteresis = {hysteresis}\n[sensors]\nencoder_bits = 14\ntorque_noise_nm = {noise_nm}\n[effects]\n{effects}\n"
+        ),
+    )
+}
+
+/// Paper A's AWAS driven by sinusoidal motor torques (30 s at 1 kHz).
+fn awas(name: &str, effects: &str) -> PathBuf {
+    scenario(
+        name,
+        &format!(
+            "kind = \"awas\"\nduration_s = 30.0\nseed = 1\n[awas]\ntau1 = [[6.0, 0.7], [3.0, 2.3], [1.5, 9.0]]\ntau2 = [[0.004, 0.05]]\n[sensors]\nencoder_bits = 14\ntorque_noise_nm = 0.05\n[effects]\n{effects}\n"
+        ),
+    )
+}
+
+fn scenario(name: &str, toml: &str) -> PathBuf {
+    let (sc, csv) = (
+        scratch(&format!("{name}.toml")),
+        scratch(&format!("{name}.csv")),
+    );
+    std::fs::write(&sc, toml).unwrap();
+    let o = Command::new(bin("rig"))
+        .args(["sim", "--scenario"])
+        .arg(&sc)
+        .arg("--out")
+        .arg(&csv)
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    csv
+}
+
+fn identify(csv: &Path, extra: &[&str]) -> Value {
+    let report = csv.with_extension("json");
+    let o = Command::new(bin("rig"))
+        .arg("identify")
+        .args(extra)
+        .arg("--data")
+        .arg(csv)
+        .arg("--report")
+        .arg(&report)
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    serde_json::from_slice(&std::fs::read(&report).unwrap()).unwrap()
+}
+
+fn names(v: &Value) -> Vec<String> {
+    v["effects"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|e| e["name"].as_str().unwrap().to_string())
+        .collect()
+}
+
+fn rmse(v: &Value, when: &str) -> f64 {
+    v[when]["rmse"].as_f64().unwrap()
+}
+
+fn param(v: &Value, effect: &str, p: &str) -> f64 {
+    v["effects"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .find(|e| e["name"] == effect)
+        .and_then(|e| e["params"][p].as_f64())
+        .unwrap_or_else(|| panic!("{effect}.{p} not in {v}"))
+}
+
+/// The effect is named first and the held-out RMSE at least halves.
+fn finds(v: &Value, effect: &str) {
+    let n = names(v);
+    assert_eq!(
+        n.first().map(String::as_str),
+        Some(effect),
+        "effects {n:?}: {v:#}"
+    );
+    assert!(
+        rmse(v, "after") <= 0.5 * rmse(v, "before"),
+        "held-out RMSE {} → {}: not halved",
+        rmse(v, "before"),
+        rmse(v, "after")
+    );
+    let gain = v["effects"][0]["gain_rmse"].as_f64().unwrap();
+    assert!(
+        gain > 0.0,
+        "the effect must pay off on held-out data: {gain}"
+    );
+}
+
+fn adds_nothing(v: &Value) {
+    assert!(
+        names(v).is_empty(),
+        "clean data, yet effects {:?}",
+        names(v)
+    );
+    assert_eq!(rmse(v, "before"), rmse(v, "after"));
+}
+
+// Declared: paper B's restoring-torque model; plant: the lever with Bouc-Wen hysteresis.
+
+#[test]
+fn restoring_model_on_clean_data_adds_nothing() {
+    let v = identify(&lever_bench("r-clean", true, 0.06, ""), &[]);
+    adds_nothing(&v);
+    assert_eq!(v["model"], "restoring");
+    // The report's other required parts.
+    assert!(v["samples"].as_u64().unwrap() == 30_000);
+    assert!(v["holdout"]["fraction"].as_f64().unwrap() > 0.2);
+    assert!(v["residual"]["white"].is_boolean());
+    assert!(v["residual"]["max_autocorr"].as_f64().unwrap() < 1.0);
+}
+
+#[test]
+fn restoring_model_finds_viscous_friction() {
+    let v = identify(
+        &lever_bench("r-visc", true, 0.06, "viscous_friction_nms_per_rad = 0.1"),
+        &[],
+    );
+    finds(&v, "viscous_friction");
+    let b = param(&v, "viscous_friction", "damping_nms_per_rad");
+    assert!((b - 0.1).abs() < 0.02, "{b}");
+}
+
+#[test]
+fn restoring_model_finds_sensor_delay() {
+    let v = identify(
+        &lever_bench("r-delay", true, 0.06, "sensor_delay_s = 0.02"),
+        &[],
+    );
+    finds(&v, "sensor_delay");
+    let d = param(&v, "sensor_delay", "delay_s");
+    // The restoring model's loop and a lag trade off (both open the loop); refitting the
+    // model against the delayed input brings the estimate near the truth.
+    assert!((d - 0.02).abs() < 0.0025, "{d}");
+}
+
+#[test]
+fn restoring_model_finds_a_torque_offset() {
+    let v = identify(
+        &lever_bench("r-bias", true, 0.06, "torque_offset_nm = 0.02"),
+        &[],
+    );
+    finds(&v, "offset");
+    let b = param(&v, "offset", "bias_nm");
+    assert!((b - 0.02).abs() < 0.002, "{b}");
+}
+
+#[test]
+fn restoring_model_finds_an_encoder_slip() {
+    let v = identify(
+        &lever_bench(
+            "r-jump",
+            true,
+            0.06,
+            "offset_jump_at_s = 13.0\noffset_jump_rad = 0.01",
+        ),
+        &[],
+    );
+    finds(&v, "offset");
+    let at = param(&v, "offset", "jump_at_s");
+    assert!((at - 13.0).abs() < 0.3, "{at}");
+}
+
+#[test]
+fn restoring_model_finds_stiffness_drift() {
+    let v = identify(
+        &lever_bench("r-drift", true, 0.06, "stiffness_drift_per_s = 0.01"),
+        &[],
+    );
+    finds(&v, "stiffness_drift");
+}
+
+#[test]
+fn restoring_model_finds_periodic_ripple() {
+    let v = identify(
+        &lever_bench(
+            "r-ripple",
+            true,
+            0.06,
+            "ripple_nm = 0.02\nripple_period_rad = 0.01",
+        ),
+        &[],
+    );
+    finds(&v, "periodic_ripple");
+    let p = param(&v, "periodic_ripple", "period_rad");
+    assert!((p - 0.01).abs() < 2e-4, "{p}");
+    let a = param(&v, "periodic_ripple", "amplitude_nm");
+    assert!((a - 0.02).abs() < 0.002, "{a}");
+}
+
+#[test]
+fn restoring_model_finds_a_hard_stop() {
+    let v = identify(
+        &lever_bench(
+            "r-stop",
+            true,
+            0.06,
+            "stop_at_rad = 0.04\nstop_rate_nm_per_rad = 20.0",
+        ),
+        &[],
+    );
+    finds(&v, "hard_stop");
+    let at = param(&v, "hard_stop", "onset_rad");
+    assert!((at - 0.04).abs() < 0.003, "{at}");
+}
+
+// Declared: the linear spring; plant: the exact lever spring without hysteresis.
+
+#[test]
+fn linear_model_on_a_clean_small_deflection_spring_adds_nothing() {
+    // At 0.03 rad the lever is linear within the noise (at 0.06 rad its geometric stiffness
+    // already shows, and is found: see below).
+    let cfg = workspace("rig-config/examples/parallel.toml");
+    let v = identify(
+        &lever_bench("l-clean", false, 0.03, ""),
+        &["--model", "linear", "--config", cfg.to_str().unwrap()],
+    );
+    adds_nothing(&v);
+}
+
+#[test]
+fn linear_model_finds_coulomb_friction() {
+    let v = identify(
+        &lever_bench("l-coulomb", false, 0.06, "coulomb_friction_nm = 0.02"),
+        &["--model", "linear"],
+    );
+    finds(&v, "coulomb_friction");
+    let f = param(&v, "coulomb_friction", "friction_nm");
+    assert!((f - 0.02).abs() < 0.002, "{f}");
+}
+
+#[test]
+fn linear_model_finds_backlash() {
+    let v = identify(
+        &lever_bench("l-backlash", false, 0.06, "backlash_rad = 0.006"),
+        &["--model", "linear"],
+    );
+    finds(&v, "backlash");
+    let w = param(&v, "backlash", "width_rad");
+    assert!((w - 0.006).abs() < 5e-4, "{w}");
+}
+
+#[test]
+fn linear_model_finds_hysteresis() {
+    // Paper B's loop is 5 % of the torque: a quieter sensor (0.2 mN·m) lets it stand out.
+    let v = identify(
+        &lever_bench_noise("l-hyst", true, 0.06, 0.0002, ""),
+        &["--model", "linear"],
+    );
+    finds(&v, "hysteresis");
+}
+
+#[test]
+fn linear_model_finds_the_levers_geometric_stiffness() {
+    let cfg = workspace("rig-config/examples/parallel.toml");
+    let v = identify(
+        &lever_bench("l-geo", false, 0.2, ""),
+        &["--model", "linear", "--config", cfg.to_str().unwrap()],
+    );
+    finds(&v, "geometric_stiffness");
+    let s = param(&v, "geometric_stiffness", "scale");
+    assert!((s - 1.0).abs() < 0.01, "{s}");
+    // Without the lever's geometry it is not a candidate, and the report says why.
+    let v = identify(
+        &lever_bench("l-geo2", false, 0.2, ""),
+        &["--model", "linear"],
+    );
+    let na = v["not_applicable"].as_array().unwrap();
+    assert!(na.iter().any(|e| e["name"] == "geometric_stiffness"), "{v}");
+}
+
+// Declared: paper A's link equation; plant: the AWAS.
+
+fn link_parameters_match_the_config(v: &Value) {
+    // rig-config/examples/awas.toml: I = 0.05 kg·m², N = 0.4 N·m·s/rad.
+    let (i, n) = (
+        v["inertia"].as_f64().unwrap(),
+        v["damping"].as_f64().unwrap(),
+    );
+    assert!((i - 0.05).abs() < 0.05 * 0.05, "inertia {i}");
+    assert!((n - 0.4).abs() < 0.05 * 0.4, "damping {n}");
+}
+
+#[test]
+fn link_equation_on_clean_data_adds_nothing_and_fits_inertia_and_damping() {
+    let v = identify(&awas("a-clean", ""), &["--model", "link"]);
+    adds_nothing(&v);
+    link_parameters_match_the_config(&v);
+}
+
+#[test]
+fn link_equation_finds_gravity() {
+    let v = identify(
+        &awas("a-gravity", "gravity_mass_kg = 1.0\ngravity_com_m = 0.1"),
+        &["--model", "link"],
+    );
+    finds(&v, "gravity");
+    let mgl = param(&v, "gravity", "mgl_nm");
+    assert!((mgl - 0.981).abs() < 0.05, "{mgl}");
+    link_parameters_match_the_config(&v);
+}
+
+#[test]
+fn link_equation_finds_coulomb_friction() {
+    let v = identify(
+        &awas("a-coulomb", "coulomb_friction_nm = 0.5"),
+        &["--model", "link"],
+    );
+    finds(&v, "coulomb_friction");
+    link_parameters_match_the_config(&v);
+}
+
+#[test]
+fn link_equation_finds_sensor_delay() {
+    let v = identify(
+        &awas("a-delay", "sensor_delay_s = 0.01"),
+        &["--model", "link"],
+    );
+    finds(&v, "sensor_delay");
+    link_parameters_match_the_config(&v);
+}
+
+// Real data: the torsion springs of ../shared/data (see its README).
+
+/// The measured springs, or None (with instructions) outside CI when they are not there.
+fn springs() -> Option<PathBuf> {
+    let dir = workspace("../shared/data/sea-torsion-springs");
+    if dir.is_dir() {
+        return Some(dir);
+    }
+    let how = format!(
+        "the measured data is not at {}: put the project's shared data beside the clone \
+         (../shared/data/sea-torsion-springs, from the public repository \
+         ITregear/SeriesElasticActuation-FYP, Python/TestData/StiffnessTesting; see \
+         docs/IDENTIFY.md). The synthetic tests do not need it.",
+        dir.display()
+    );
+    assert!(std::env::var_os("CI").is_none(), "{how}");
+    eprintln!("skipped: {how}");
+    None
+}
+
+#[test]
+fn measured_spring_5_at_9_nm_linear_start_names_what_it_lacks_and_says_what_is_messy() {
+    let Some(dir) = springs() else { return };
+    let report = scratch("spring5-9nm.json");
+    let o = Command::new(bin("rig"))
+        .args([
+            "identify",
+            "--model",
+            "linear",
+            "--columns",
+            "t=time,phi=displacement:deg,tau=torque_out",
+            "--data",
+        ])
+        .arg(dir.join("kt-9-1-70-5-09032023-143520.csv"))
+        .arg("--holdout")
+        .arg(dir.join("kt-9-2-71-5-09032023-143611.csv"))
+        .arg("--report")
+        .arg(&report)
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let v: Value = serde_json::from_slice(&std::fs::read(&report).unwrap()).unwrap();
+    // The data README: a linear fit leaves about 1.1 N·m against a 10 N·m peak (fitted on
+    // the same test); fitted on one test and scored on the other it is a little worse.
+    let (before, after) = (rmse(&v, "before"), rmse(&v, "after"));
+    assert!((1.0..1.5).contains(&before), "before {before}");
+    assert!(after < 0.5 * before, "after {after}");
+    // The loop is the largest missing effect, and every added effect pays off held out.
+    let n = names(&v);
+    assert!(n.iter().any(|e| e == "hysteresis"), "{n:?}");
+    for e in v["effects"].as_array().unwrap() {
+        assert!(e["gain_rmse"].as_f64().unwrap() > 0.0, "{e}");
+    }
+    // Irregular sampling is reported, and the messy parts are said, not hidden.
+    assert_eq!(v["sampling"][0]["irregular"], true);
+    let notes: Vec<&str> = v["notes"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|n| n.as_str().unwrap())
+        .collect();
+    assert!(notes.iter().any(|n| n.starts_with("offset:")), "{notes:?}");
+    assert!(notes.iter().any(|n| n.starts_with("steps:")), "{notes:?}");
+    assert_eq!(v["residual"]["white"], false);
+    for f in [
+        "spring5-9nm.md",
+        "spring5-9nm-fit.png",
+        "spring5-9nm-residual.png",
+    ] {
+        let p = scratch(f);
+        assert!(
+            std::fs::metadata(&p).unwrap().len() > 1000,
+            "{}",
+            p.display()
+        );
+    }
+}
