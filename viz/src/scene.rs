@@ -292,6 +292,9 @@ impl Scene {
                     if let Some(k) = e.stiffness_nm_per_rad {
                         self.scalar(rec, format!("{p}/stiffness/estimate"), k)?;
                     }
+                    if let Some(r) = e.residual_nm {
+                        self.scalar(rec, format!("{p}/residual"), r)?;
+                    }
                     if let Some((inertia, damping)) = awas {
                         for (q, v, var, truth) in [
                             ("inertia", e.inertia_kg_m2, e.inertia_var, inertia),
@@ -379,6 +382,25 @@ impl Scene {
                     "status",
                     &TextLog::new(format!("{who}: {}", s.text)).with_level(level),
                 )?;
+                // The estimator's residual monitor gets a view of its own.
+                if let (Topic::EstimatorStatus { .. }, Some(text)) =
+                    (&topic, s.text.strip_prefix("diagnosis: "))
+                {
+                    let name = self
+                        .joints
+                        .get(s.joint as usize)
+                        .map_or_else(|| format!("joint {}", s.joint), |j| j.name.clone());
+                    let level = if text.starts_with("residual structure —") {
+                        rerun::TextLogLevel::WARN
+                    } else {
+                        rerun::TextLogLevel::INFO
+                    };
+                    self.stats.logged += 1;
+                    rec.log(
+                        "diagnosis",
+                        &TextLog::new(format!("{name}: {text}")).with_level(level),
+                    )?;
+                }
             }
             AnyMessage::JointCommand(_) | AnyMessage::AllocationRequest(_) => {}
         }
@@ -522,9 +544,13 @@ pub fn blueprint(cfg: &RigConfig) -> Blueprint {
         .joints
         .iter()
         .map(|j| {
-            TimeSeriesView::new(format!("{}: pivot, stiffness", j.name))
+            TimeSeriesView::new(format!("{}: pivot, stiffness, residual", j.name))
                 .with_origin(format!("/joints/{}", j.name))
-                .with_contents(["$origin/pivot_mm", "$origin/stiffness/**"])
+                .with_contents([
+                    "$origin/pivot_mm",
+                    "$origin/stiffness/**",
+                    "$origin/residual",
+                ])
                 .into()
         })
         .chain(
@@ -556,13 +582,22 @@ pub fn blueprint(cfg: &RigConfig) -> Blueprint {
             .with_origin("/allocation/k")
             .into(),
         TextLogView::new("status").with_origin("/status").into(),
+        TextLogView::new("residual diagnosis")
+            .with_origin("/diagnosis")
+            .into(),
     ]);
     let root: ContainerLike = if cfg.topology.is_robot() {
         Horizontal::new([left.into(), middle.into(), right.into()]).into()
     } else {
         Horizontal::new([
             middle.into(),
-            TextLogView::new("status").with_origin("/status").into(),
+            Vertical::new([
+                TextLogView::new("status").with_origin("/status").into(),
+                TextLogView::new("residual diagnosis")
+                    .with_origin("/diagnosis")
+                    .into(),
+            ])
+            .into(),
         ])
         .into()
     };

@@ -18,6 +18,7 @@ use std::collections::BTreeMap;
 use rig_config::{JointKind, RigConfig, Topology};
 use rig_model::estimator::{JointReadings, RobotEstimator};
 use rig_model::hysteresis::RestoringTorqueModel;
+use rig_model::identify::monitor::ResidualMonitor;
 use rig_model::observer::{DecoupledObserver, ImpedanceSample};
 use rig_protocol::{
     EeEstimate, JointEstimate, JointSample, JointState, JointStatus, StiffnessTriple,
@@ -106,6 +107,8 @@ pub struct EstimatorCore {
     stale: Vec<bool>,
     status_seq: u64,
     ee_seq: u64,
+    /// Residual monitors, one per joint (fed where a torque sensor exists).
+    monitors: Vec<ResidualMonitor>,
     pub stats: CoreStats,
 }
 
@@ -196,6 +199,14 @@ impl EstimatorCore {
             stale: vec![false; n],
             status_seq: 0,
             ee_seq: 0,
+            // 2 s windows, looked at every 0.25 s (at the rig's rate).
+            monitors: vec![
+                ResidualMonitor::new(
+                    (2.0 * cfg.rate_hz).round() as usize,
+                    (0.25 * cfg.rate_hz).round() as usize
+                );
+                n
+            ],
             stats: CoreStats::default(),
         })
     }
@@ -403,7 +414,22 @@ impl EstimatorCore {
             }
         }
         self.stats.joint_estimates += joint_out.len() as u64;
+        // Where a torque sensor measures what the model predicts, watch the residual.
+        let mut diagnoses = Vec::new();
+        for e in &joint_out {
+            let j = e.joint as usize;
+            if let (Some(r), Some(Some(s)), Some(m)) =
+                (e.residual_nm, slots.get(j), self.monitors.get_mut(j))
+                && let Some(d) = m.push(e.t_acq_ns as f64 * 1e-9, s.deflection_rad, r)
+            {
+                diagnoses.push((j, d));
+            }
+        }
         out.extend(joint_out.into_iter().map(Output::Joint));
+        for (j, d) in diagnoses {
+            let o = self.status(j, JointState::Ok, d.text(), t_ns);
+            out.push(o);
+        }
     }
 }
 
@@ -609,5 +635,45 @@ mod tests {
         }
         assert_eq!(got, 1500);
         assert_eq!(core.stats.ee_estimates, 0);
+    }
+
+    #[test]
+    fn a_torque_sensor_offset_that_appears_is_diagnosed_in_a_status() {
+        // One bench joint whose torque sensor reads the model's own torque, then, from 3 s
+        // on, 0.05 N·m more (a zero that slipped).
+        let mut c = cfg();
+        c.topology = Topology::Bench;
+        c.geometry = None;
+        c.joints.truncate(1);
+        let mut core = EstimatorCore::new(&c, CoreTiming::for_rate(1000.0)).unwrap();
+        let JointKind::Lever {
+            restoring,
+            dead_band_rad,
+            ..
+        } = &c.joints[0].kind
+        else {
+            panic!("the example's joints are lever VSAs")
+        };
+        let mut sensor = RestoringTorqueModel::new((**restoring).clone(), *dead_band_rad);
+        let mut diagnoses = Vec::new();
+        for tick in 1..=6000u64 {
+            let defl = 0.03 * (tick as f64 * 0.004).sin();
+            let mut s = sample(0, tick, defl);
+            let noise = 1e-3 * (((tick * 7919) % 1000) as f64 / 1000.0 - 0.5);
+            let offset = if tick >= 3000 { 0.05 } else { 0.0 };
+            s.torque_nm = Some(sensor.update(defl, 0.009) + offset + noise);
+            for o in core.on_sample(s, tick * 1_000_000) {
+                if let Output::Status(st) = o {
+                    diagnoses.push((tick, st.text));
+                }
+            }
+        }
+        assert!(!diagnoses.is_empty(), "no diagnosis");
+        let (tick, text) = &diagnoses[0];
+        assert!(*tick > 3000 && *tick < 5500, "seen at {tick}: {text}");
+        assert!(
+            text.starts_with("diagnosis:") && text.contains("offset"),
+            "{text}"
+        );
     }
 }

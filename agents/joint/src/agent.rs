@@ -50,6 +50,8 @@ pub struct AgentOptions {
     pub seed: u64,
     /// Stop after this long (None: until shutdown).
     pub duration: Option<Duration>,
+    /// Undeclared effects of the simulated joints (none by default).
+    pub effects: rig_sim::effects::Effects,
 }
 
 /// What the agent did for one joint.
@@ -220,7 +222,7 @@ pub async fn run(
     let mut served = Vec::new();
     for name in &opts.joints {
         let j = joint_index(cfg, name)?;
-        let backend = SimBackend::new(cfg, j, opts.seed.wrapping_add(j as u64))?;
+        let backend = SimBackend::new(cfg, j, opts.seed.wrapping_add(j as u64), opts.effects)?;
         let limits = guard_limits(cfg, j);
         let mut joint = Served {
             name: name.clone(),

@@ -68,6 +68,7 @@ enum Sim {
 /// The simulated joint.
 pub struct SimBackend {
     sim: Sim,
+    effects: Effects,
     noise: Noise,
     resolution: f64,
     torque_noise_nm: f64,
@@ -100,7 +101,13 @@ pub fn joint_index(cfg: &RigConfig, name: &str) -> Result<usize, BackendError> {
 
 impl SimBackend {
     /// The simulated joint `j` of `cfg`, seeded.
-    pub fn new(cfg: &RigConfig, j: usize, seed: u64) -> Result<Self, BackendError> {
+    /// `effects` are undeclared effects of the simulated joint (none by default).
+    pub fn new(
+        cfg: &RigConfig,
+        j: usize,
+        seed: u64,
+        effects: Effects,
+    ) -> Result<Self, BackendError> {
         let joint = &cfg.joints[j];
         let world = |e: String| BackendError::World(e);
         let sim = match (&joint.kind, cfg.topology) {
@@ -115,7 +122,7 @@ impl SimBackend {
                 let plant = LeverJointPlant::new(
                     *vsa,
                     SpringHysteresis::default(),
-                    Effects::default(),
+                    effects,
                     d0,
                     joint.limits.stiffness_rate,
                 )
@@ -127,7 +134,7 @@ impl SimBackend {
                 let plant = LeverJointPlant::new(
                     *vsa,
                     SpringHysteresis::default(),
-                    Effects::default(),
+                    effects,
                     d0,
                     joint.limits.stiffness_rate,
                 )
@@ -143,7 +150,7 @@ impl SimBackend {
                 plant: AwasPlant::new(
                     *awas,
                     *dynamics,
-                    Effects::default(),
+                    effects,
                     AwasState {
                         theta2: 150.0,
                         ..Default::default()
@@ -154,6 +161,7 @@ impl SimBackend {
         };
         Ok(Self {
             sim,
+            effects,
             noise: Noise::new(seed),
             resolution: joint.encoder.resolution_rad,
             torque_noise_nm: 0.003,
@@ -208,11 +216,13 @@ impl SimBackend {
                 let k = ((t / *period).round() as usize) % path.len().max(1);
                 let defl = path.get(k).copied().unwrap_or(0.0);
                 let tau = plant.torque(defl, t, dt);
+                let e = &self.effects;
+                let sensed = tau + e.ripple(defl) + e.stop(defl) + e.torque_offset_nm;
                 Ok(Reading {
                     motor_rad: 0.0,
-                    deflection_rad: quantize(defl, res),
+                    deflection_rad: quantize(defl + e.encoder_bias(t), res),
                     pivot_m: Some(plant.pivot.d),
-                    torque_nm: Some(tau + self.noise.gaussian(self.torque_noise_nm)),
+                    torque_nm: Some(sensed + self.noise.gaussian(self.torque_noise_nm)),
                     stiffness_motor_rad: None,
                     truth: Some(Truth {
                         deflection_rad: defl,

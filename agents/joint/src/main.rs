@@ -38,6 +38,10 @@ struct Args {
     /// Stop after this many seconds (default: until Ctrl-C)
     #[arg(long)]
     duration: Option<f64>,
+    /// Undeclared effects of the simulated joint, for testing what the estimator notices: a
+    /// TOML file of effect fields (agents/sim/SCENARIOS.md), e.g. `torque_offset_nm = 0.05`
+    #[arg(long, value_name = "FILE")]
+    sim_effects: Option<std::path::PathBuf>,
 }
 
 fn main() -> ExitCode {
@@ -56,7 +60,20 @@ fn main() -> ExitCode {
             return ExitCode::from(1);
         }
     };
+    let effects = match a
+        .sim_effects
+        .as_deref()
+        .map(rig_sim::effects::Effects::load)
+    {
+        None => rig_sim::effects::Effects::default(),
+        Some(Ok(e)) => e,
+        Some(Err(e)) => {
+            eprintln!("error: --sim-effects {e}");
+            return ExitCode::from(1);
+        }
+    };
     let opts = AgentOptions {
+        effects,
         cfg,
         joints: a.joint.clone(),
         net: NetOverrides {

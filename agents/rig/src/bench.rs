@@ -316,6 +316,7 @@ fn run_rig(
                     start_ns,
                     seed: 1,
                     duration: Some(duration),
+                    effects: Default::default(),
                 },
                 std::future::pending::<()>(),
             )));

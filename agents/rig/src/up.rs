@@ -46,6 +46,12 @@ pub struct Args {
     /// Seed of the simulated sensors
     #[arg(long, default_value_t = 1)]
     seed: u64,
+    /// Undeclared effects of every simulated joint (the config does not know them): a TOML
+    /// file of effect fields (agents/sim/SCENARIOS.md), e.g. `torque_offset_nm = 0.05`. With a
+    /// torque sensor (rig-config/examples/bench.toml) the estimator's residual monitor
+    /// publishes a diagnosis
+    #[arg(long, value_name = "FILE")]
+    sim_effects: Option<std::path::PathBuf>,
     #[command(flatten)]
     viz: crate::viz::VizArgs,
 }
@@ -162,6 +168,11 @@ pub fn run(args: &Args) -> Result<(), CliError> {
 }
 
 async fn up(cfg: RigConfig, args: &Args) -> Result<(), CliError> {
+    let effects = match &args.sim_effects {
+        Some(p) => rig_sim::effects::Effects::load(p)
+            .map_err(|e| CliError::Invalid(format!("--sim-effects {e}")))?,
+        None => rig_sim::effects::Effects::default(),
+    };
     let (zenoh_connect, viewer_url) = crate::viz::split_connect(&args.connect);
     let viz = match args.viz.sink(viewer_url, &cfg, false) {
         Some(sink) => Some(crate::viz::VizThread::start(&cfg, &sink)?),
@@ -228,6 +239,7 @@ async fn up(cfg: RigConfig, args: &Args) -> Result<(), CliError> {
             start_ns,
             seed: args.seed,
             duration: None,
+            effects,
         };
         joints.push((
             j.name.clone(),

@@ -86,6 +86,22 @@ impl Effects {
         Ok(())
     }
 
+    /// Reads undeclared effects for live simulated joints (`rig-joint --sim-effects`,
+    /// `rig up --sim-effects`): a TOML file of the fields above, e.g. `torque_offset_nm = 0.05`.
+    pub fn load(path: &std::path::Path) -> Result<Self, String> {
+        let src = std::fs::read_to_string(path)
+            .map_err(|e| format!("{}: cannot read the file: {e}", path.display()))?;
+        let e: Effects = toml::from_str(&src).map_err(|e| {
+            let line = e.span().map_or(0, |sp| {
+                src[..sp.start.min(src.len())].matches('\n').count() + 1
+            });
+            format!("{}:{line}: {}", path.display(), e.message().trim())
+        })?;
+        e.validate()
+            .map_err(|m| format!("{}: {m}", path.display()))?;
+        Ok(e)
+    }
+
     /// Friction torque for a rate `x_dot`.
     pub fn friction(&self, x_dot: f64) -> f64 {
         let s = if x_dot > 0.0 {

@@ -12,6 +12,7 @@
 //! added. The held-out data then gives every "before" and "after" figure.
 
 pub mod effects;
+pub mod monitor;
 pub mod signals;
 pub mod stats;
 
