@@ -762,3 +762,58 @@ fn a_bench_joints_torque_offset_is_diagnosed_live_and_shown_in_rerun() {
         "the diagnosis names the offset"
     );
 }
+
+#[test]
+fn a_recording_of_the_bench_is_identified_and_its_undeclared_offset_named() {
+    // Live rig → `rig record` (MCAP) → `rig identify` on the recording.
+    let _one_at_a_time = serial();
+    let dir = viz_dir("identify-mcap");
+    let (mcap, effects, report) = (
+        dir.join("bench.mcap"),
+        dir.join("offset.toml"),
+        dir.join("bench-id.json"),
+    );
+    std::fs::write(&effects, "torque_offset_nm = 0.02\n").unwrap();
+    let hub = format!("tcp/127.0.0.1:{}", free_port());
+    let bench = Path::new(env!("CARGO_MANIFEST_DIR")).join("../rig-config/examples/bench.toml");
+    let mut rec = spawn(
+        "rig",
+        &s(&[
+            "record",
+            "--config",
+            bench.to_str().unwrap(),
+            "--listen",
+            &hub,
+            "--out",
+            mcap.to_str().unwrap(),
+            "--duration",
+            "12",
+        ]),
+    );
+    std::thread::sleep(Duration::from_millis(1000));
+    let o = Command::new(bin("rig"))
+        .arg("up")
+        .arg("--config")
+        .arg(&bench)
+        .arg("--sim-effects")
+        .arg(&effects)
+        .args(["--duration", "8", "--connect", &hub])
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    assert!(rec.0.wait().unwrap().success());
+    let o = Command::new(bin("rig"))
+        .args(["identify", "--joint", "j1", "--data"])
+        .arg(&mcap)
+        .arg("--report")
+        .arg(&report)
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let v: serde_json::Value = serde_json::from_slice(&std::fs::read(&report).unwrap()).unwrap();
+    assert!(v["samples"].as_u64().unwrap() > 5000, "{v}");
+    assert_eq!(v["effects"][0]["name"], "offset", "{v:#}");
+    let bias = v["effects"][0]["params"]["bias_nm"].as_f64().unwrap();
+    assert!((bias - 0.02).abs() < 0.005, "{bias}");
+    assert!(v["after"]["rmse"].as_f64().unwrap() < 0.5 * v["before"]["rmse"].as_f64().unwrap());
+}

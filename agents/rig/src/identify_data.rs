@@ -260,6 +260,11 @@ fn read_mcap(path: &Path, joint: Option<&str>) -> Result<(Run, Sampling), CliErr
         }
     }
     let names: Vec<String> = by_joint.keys().cloned().collect();
+    if names.is_empty() {
+        return Err(bad(
+            "holds no joint samples (was it recorded with the rig's --config? `rig record` listens on rig/<name>/**)".into(),
+        ));
+    }
     let j = match joint {
         Some(j) => j.to_string(),
         None => names

@@ -584,6 +584,13 @@ pub fn identify(
         .fold(0.0f64, f64::max);
     let has_q = p.runs.iter().all(|r| r.q.is_some());
     let has_d = p.runs.iter().all(|r| r.d.is_some());
+    let q_all: Vec<f64> = p
+        .runs
+        .iter()
+        .flat_map(|r| r.q.clone().unwrap_or_default())
+        .collect();
+    let q_range = q_all.iter().cloned().fold(f64::NEG_INFINITY, f64::max)
+        - q_all.iter().cloned().fold(f64::INFINITY, f64::min);
     let mut not_applicable: Vec<(Effect, &'static str)> = Vec::new();
     let mut candidates: Vec<(Effect, Vec<f64>)> = Vec::new();
     for e in Effect::ALL {
@@ -609,6 +616,11 @@ pub fn identify(
             }
             (Effect::GeometricStiffness, true) if !has_d => Err("needs the pivot column d"),
             (Effect::Gravity, true) if !has_q => Err("needs the link angle column q"),
+            // sin q and cos q of a link that hardly turns are a constant and a slope: an
+            // offset and a spring, not gravity.
+            (Effect::Gravity, _) if q_range < 0.5 => {
+                Err("the link angle moves less than 0.5 rad: gravity cannot be told from an offset")
+            }
             (Effect::SensorDelay, _) => {
                 // The torque sensor lags (filters, transport). A torque that leads the
                 // encoder by δ is, at these speeds, k·δ·ẋ: viscous friction, named so.
