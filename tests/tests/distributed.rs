@@ -5,6 +5,9 @@
 // Test helpers may panic: a failed helper is a failed test.
 #![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)]
 
+mod common;
+use common::bin;
+
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 use std::process::{Child, Command, Stdio};
@@ -14,19 +17,6 @@ use rig_joint::backend::{WORLD_STROKE_M, WORLD_STROKE_S};
 use rig_protocol::*;
 use rig_runtime::{NetOverrides, now_ns, open};
 use rig_sim::world::StrokeWorld;
-
-/// A binary of the workspace, next to this test's own executable's directory.
-fn bin(name: &str) -> PathBuf {
-    let exe = std::env::current_exe().unwrap();
-    let dir = exe.parent().and_then(Path::parent).unwrap();
-    let p = dir.join(name);
-    assert!(
-        p.exists(),
-        "{} is not built: run `cargo build --workspace` (cargo test --workspace builds it)",
-        p.display()
-    );
-    p
-}
 
 fn config() -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR")).join("../rig-config/examples/parallel.toml")

@@ -4,6 +4,8 @@
 use std::path::Path;
 use std::sync::Once;
 
+use plotters::coord::Shift;
+use plotters::coord::types::RangedCoordf64;
 use plotters::prelude::*;
 use plotters::style::FontStyle;
 use rig_model::identify::Identified;
@@ -57,8 +59,68 @@ fn range(vals: impl Iterator<Item = f64>) -> (f64, f64) {
     (lo - pad, hi + pad)
 }
 
-fn err<E: std::fmt::Display>(path: &Path) -> impl Fn(E) -> String + '_ {
-    move |e| format!("cannot draw {}: {e}", path.display())
+type Chart<'a, 'b> =
+    ChartContext<'a, BitMapBackend<'b>, Cartesian2d<RangedCoordf64, RangedCoordf64>>;
+
+fn msg<E: std::fmt::Display>(e: E) -> String {
+    e.to_string()
+}
+
+/// A captioned chart with a mesh and axis labels.
+fn chart<'a, 'b>(
+    area: &'a DrawingArea<BitMapBackend<'b>, Shift>,
+    caption: &str,
+    x: (f64, f64),
+    y: (f64, f64),
+    x_desc: &str,
+    y_desc: &str,
+) -> Result<Chart<'a, 'b>, String> {
+    let mut c = ChartBuilder::on(area)
+        .caption(caption, ("sans-serif", 22))
+        .margin(12)
+        .x_label_area_size(40)
+        .y_label_area_size(70)
+        .build_cartesian_2d(x.0..x.1, y.0..y.1)
+        .map_err(msg)?;
+    c.configure_mesh()
+        .x_desc(x_desc)
+        .y_desc(y_desc)
+        .draw()
+        .map_err(msg)?;
+    Ok(c)
+}
+
+/// Lines through the contiguous stretches of `t`, one legend entry for all.
+fn stretch_lines(
+    c: &mut Chart<'_, '_>,
+    t: &[f64],
+    dt: f64,
+    label: &str,
+    style: ShapeStyle,
+    point: impl Fn(usize) -> (f64, f64),
+) -> Result<(), String> {
+    let mut first = true;
+    for s in stretches(t, dt, 4000) {
+        let a = c
+            .draw_series(LineSeries::new(s.iter().map(|&k| point(k)), style))
+            .map_err(msg)?;
+        if first && !label.is_empty() {
+            let color = style.color;
+            a.label(label).legend(move |(x, y)| {
+                PathElement::new(vec![(x, y), (x + 20, y)], color.stroke_width(3))
+            });
+            first = false;
+        }
+    }
+    Ok(())
+}
+
+fn legend<'a, 'b: 'a>(c: &mut Chart<'a, 'b>) -> Result<(), String> {
+    c.configure_series_labels()
+        .background_style(WHITE.mix(0.8))
+        .border_style(BLACK)
+        .draw()
+        .map_err(msg)
 }
 
 /// The first held-out run only (so time runs forward), as row indices.
@@ -71,95 +133,65 @@ fn first_run(res: &Identified) -> Vec<usize> {
 
 /// Measured torque against the model before and after: over time, and against the angle.
 pub fn fit(path: &Path, res: &Identified) -> Result<(), String> {
+    draw_fit(path, res).map_err(|e| format!("cannot draw {}: {e}", path.display()))
+}
+
+fn draw_fit(path: &Path, res: &Identified) -> Result<(), String> {
     register_font();
     let h = &res.heldout;
     let rows = first_run(res);
     let t: Vec<f64> = rows.iter().map(|&i| h.t[i]).collect();
     let root = BitMapBackend::new(path, (1200, 1000)).into_drawing_area();
-    root.fill(&WHITE).map_err(err(path))?;
+    root.fill(&WHITE).map_err(msg)?;
     let (top, bottom) = root.split_vertically(480);
     let series = [
-        ("measured", MEASURED, &h.measured),
-        ("before", BEFORE, &h.before),
-        ("after", AFTER, &h.after),
+        ("measured", MEASURED, &h.measured, 2),
+        ("before", BEFORE, &h.before, 1),
+        ("after", AFTER, &h.after, 1),
     ];
-    let (t0, t1) = range(t.iter().copied());
-    let (y0, y1) = range(rows.iter().map(|&i| h.measured[i]));
-    let mut c = ChartBuilder::on(&top)
-        .caption(
-            format!(
-                "held-out torque, model {}: RMSE {:.4} → {:.4} N·m",
-                res.model.name(),
-                res.before.rmse,
-                res.after.rmse
-            ),
-            ("sans-serif", 22),
-        )
-        .margin(12)
-        .x_label_area_size(40)
-        .y_label_area_size(70)
-        .build_cartesian_2d(t0..t1, y0..y1)
-        .map_err(err(path))?;
-    c.configure_mesh()
-        .x_desc("time in run [s]")
-        .y_desc("torque [N·m]")
-        .draw()
-        .map_err(err(path))?;
-    for (name, color, ys) in series {
-        let mut first = true;
-        for s in stretches(&t, res.dt, 4000) {
-            let a = c
-                .draw_series(LineSeries::new(
-                    s.iter().map(|&k| (t[k], ys[rows[k]])),
-                    color.stroke_width(if name == "measured" { 2 } else { 1 }),
-                ))
-                .map_err(err(path))?;
-            if first {
-                a.label(name).legend(move |(x, y)| {
-                    PathElement::new(vec![(x, y), (x + 20, y)], color.stroke_width(3))
-                });
-                first = false;
-            }
-        }
+    let y = range(rows.iter().map(|&i| h.measured[i]));
+    let caption = format!(
+        "held-out torque, model {}: RMSE {:.4} → {:.4} N·m",
+        res.model.name(),
+        res.before.rmse,
+        res.after.rmse
+    );
+    let tr = range(t.iter().copied());
+    let mut c = chart(&top, &caption, tr, y, "time in run [s]", "torque [N·m]")?;
+    for (name, color, ys, w) in series {
+        stretch_lines(&mut c, &t, res.dt, name, color.stroke_width(w), |k| {
+            (t[k], ys[rows[k]])
+        })?;
     }
-    c.configure_series_labels()
-        .background_style(WHITE.mix(0.8))
-        .border_style(BLACK)
-        .draw()
-        .map_err(err(path))?;
-
-    let (x0, x1) = range(rows.iter().map(|&i| h.x[i]));
-    let mut c = ChartBuilder::on(&bottom)
-        .caption("torque against angle (the loop)", ("sans-serif", 22))
-        .margin(12)
-        .x_label_area_size(40)
-        .y_label_area_size(70)
-        .build_cartesian_2d(x0..x1, y0..y1)
-        .map_err(err(path))?;
-    c.configure_mesh()
-        .x_desc(if res.model.name() == "link" {
-            "link angle q [rad]"
-        } else {
-            "deflection φ [rad]"
-        })
-        .y_desc("torque [N·m]")
-        .draw()
-        .map_err(err(path))?;
-    for (_, color, ys) in series {
-        for s in stretches(&t, res.dt, 4000) {
-            c.draw_series(LineSeries::new(
-                s.iter().map(|&k| (h.x[rows[k]], ys[rows[k]])),
-                color.stroke_width(1),
-            ))
-            .map_err(err(path))?;
-        }
+    legend(&mut c)?;
+    let x_desc = if res.model.name() == "link" {
+        "link angle q [rad]"
+    } else {
+        "deflection φ [rad]"
+    };
+    let xr = range(rows.iter().map(|&i| h.x[i]));
+    let mut c = chart(
+        &bottom,
+        "torque against angle (the loop)",
+        xr,
+        y,
+        x_desc,
+        "torque [N·m]",
+    )?;
+    for (_, color, ys, _) in series {
+        stretch_lines(&mut c, &t, res.dt, "", color.stroke_width(1), |k| {
+            (h.x[rows[k]], ys[rows[k]])
+        })?;
     }
-    root.present().map_err(err(path))?;
-    Ok(())
+    root.present().map_err(msg)
 }
 
 /// The held-out residual before and after, its autocorrelation and its cross-correlations.
 pub fn residual(path: &Path, res: &Identified) -> Result<(), String> {
+    draw_residual(path, res).map_err(|e| format!("cannot draw {}: {e}", path.display()))
+}
+
+fn draw_residual(path: &Path, res: &Identified) -> Result<(), String> {
     register_font();
     let h = &res.heldout;
     let rows = first_run(res);
@@ -167,71 +199,47 @@ pub fn residual(path: &Path, res: &Identified) -> Result<(), String> {
     let e_before: Vec<f64> = rows.iter().map(|&i| h.measured[i] - h.before[i]).collect();
     let e_after: Vec<f64> = rows.iter().map(|&i| h.measured[i] - h.after[i]).collect();
     let root = BitMapBackend::new(path, (1200, 1200)).into_drawing_area();
-    root.fill(&WHITE).map_err(err(path))?;
+    root.fill(&WHITE).map_err(msg)?;
     let parts = root.split_evenly((3, 1));
-    let (t0, t1) = range(t.iter().copied());
-    let (y0, y1) = range(e_before.iter().chain(&e_after).copied());
-    let mut c = ChartBuilder::on(&parts[0])
-        .caption("held-out residual (measured − model)", ("sans-serif", 22))
-        .margin(12)
-        .x_label_area_size(40)
-        .y_label_area_size(70)
-        .build_cartesian_2d(t0..t1, y0..y1)
-        .map_err(err(path))?;
-    c.configure_mesh()
-        .x_desc("time in run [s]")
-        .y_desc("residual [N·m]")
-        .draw()
-        .map_err(err(path))?;
+    let y = range(e_before.iter().chain(&e_after).copied());
+    let mut c = chart(
+        &parts[0],
+        "held-out residual (measured − model)",
+        range(t.iter().copied()),
+        y,
+        "time in run [s]",
+        "residual [N·m]",
+    )?;
     for (name, color, e) in [("before", BEFORE, &e_before), ("after", AFTER, &e_after)] {
-        let mut first = true;
-        for s in stretches(&t, res.dt, 4000) {
-            let a = c
-                .draw_series(LineSeries::new(s.iter().map(|&k| (t[k], e[k])), color))
-                .map_err(err(path))?;
-            if first {
-                a.label(name).legend(move |(x, y)| {
-                    PathElement::new(vec![(x, y), (x + 20, y)], color.stroke_width(3))
-                });
-                first = false;
-            }
-        }
+        stretch_lines(&mut c, &t, res.dt, name, color.stroke_width(1), |k| {
+            (t[k], e[k])
+        })?;
     }
-    c.configure_series_labels()
-        .background_style(WHITE.mix(0.8))
-        .border_style(BLACK)
-        .draw()
-        .map_err(err(path))?;
+    legend(&mut c)?;
 
     let r = &res.residual;
     let lag_max = r.lags as f64 * res.dt;
-    let mut c = ChartBuilder::on(&parts[1])
-        .caption(
-            format!(
-                "autocorrelation after (band ±{:.3}: {})",
-                r.band,
-                if r.white { "white" } else { "not white" }
-            ),
-            ("sans-serif", 22),
-        )
-        .margin(12)
-        .x_label_area_size(40)
-        .y_label_area_size(70)
-        .build_cartesian_2d(0.0..lag_max, -1.0..1.0)
-        .map_err(err(path))?;
-    c.configure_mesh()
-        .x_desc("lag [s]")
-        .y_desc("ρ")
-        .draw()
-        .map_err(err(path))?;
+    let caption = format!(
+        "autocorrelation after (band ±{:.3}: {})",
+        r.band,
+        if r.white { "white" } else { "not white" }
+    );
+    let mut c = chart(
+        &parts[1],
+        &caption,
+        (0.0, lag_max),
+        (-1.0, 1.0),
+        "lag [s]",
+        "ρ",
+    )?;
     c.draw_series(r.autocorr.iter().enumerate().map(|(k, v)| {
         let x = (k + 1) as f64 * res.dt;
         PathElement::new(vec![(x, 0.0), (x, *v)], AFTER.stroke_width(2))
     }))
-    .map_err(err(path))?;
+    .map_err(msg)?;
     for b in [r.band, -r.band] {
         c.draw_series(LineSeries::new(vec![(0.0, b), (lag_max, b)], BLACK))
-            .map_err(err(path))?;
+            .map_err(msg)?;
     }
 
     let span = r
@@ -240,36 +248,19 @@ pub fn residual(path: &Path, res: &Identified) -> Result<(), String> {
         .and_then(|(_, c)| c.last().map(|p| p.0))
         .unwrap_or(1.0)
         .max(1e-6);
-    let mut c = ChartBuilder::on(&parts[2])
-        .caption(
-            "cross-correlation of the residual with the inputs",
-            ("sans-serif", 22),
-        )
-        .margin(12)
-        .x_label_area_size(40)
-        .y_label_area_size(70)
-        .build_cartesian_2d(-span..span, -1.0..1.0)
-        .map_err(err(path))?;
-    c.configure_mesh()
-        .x_desc("lag [s] (positive: the residual follows the input)")
-        .y_desc("ρ")
-        .draw()
-        .map_err(err(path))?;
+    let mut c = chart(
+        &parts[2],
+        "cross-correlation of the residual with the inputs",
+        (-span, span),
+        (-1.0, 1.0),
+        "lag [s] (positive: the residual follows the input)",
+        "ρ",
+    )?;
     let colors = [BLUE, RGBColor(0, 150, 80), MAGENTA];
     for ((name, curve), color) in r.cross_curves.iter().zip(colors) {
-        c.draw_series(LineSeries::new(
-            curve.iter().copied(),
-            color.stroke_width(2),
-        ))
-        .map_err(err(path))?
-        .label(*name)
-        .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], color.stroke_width(3)));
+        let lag: Vec<f64> = curve.iter().map(|p| p.0).collect();
+        stretch_lines(&mut c, &lag, 1.0, name, color.stroke_width(2), |k| curve[k])?;
     }
-    c.configure_series_labels()
-        .background_style(WHITE.mix(0.8))
-        .border_style(BLACK)
-        .draw()
-        .map_err(err(path))?;
-    root.present().map_err(err(path))?;
-    Ok(())
+    legend(&mut c)?;
+    root.present().map_err(msg)
 }
