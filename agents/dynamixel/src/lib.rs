@@ -1,0 +1,10 @@
+//! # rig-dynamixel — the Dynamixel side of the joint agent
+//!
+//! Work in progress for the hardware issue: so far the device side of Dynamixel protocol 2.0
+//! ([`protocol2`]), the control tables of the servos paper B's rig uses ([`models`]), and
+//! virtual servos that answer on one end of a pseudo-terminal pair while the real client
+//! library (dynamixel2) talks to the other ([`virtual_bus`]), with fault injection.
+
+pub mod models;
+pub mod protocol2;
+pub mod virtual_bus;

@@ -1,0 +1,105 @@
+//! Control tables of the servos paper B's rig uses: the fields the joint agent reads and
+//! writes, with their addresses and sizes (ROBOTIS e-manual).
+
+/// A field of a control table.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Field {
+    pub address: u16,
+    pub size: u16,
+    /// Whether a client may write it.
+    pub writable: bool,
+}
+
+const fn ro(address: u16, size: u16) -> Field {
+    Field {
+        address,
+        size,
+        writable: false,
+    }
+}
+
+const fn rw(address: u16, size: u16) -> Field {
+    Field {
+        address,
+        size,
+        writable: true,
+    }
+}
+
+/// A servo model.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Model {
+    pub name: &'static str,
+    pub number: u16,
+    /// Dynamixel protocol: 1 or 2.
+    pub protocol: u8,
+    pub model_number: Field,
+    pub firmware: Field,
+    pub id: Field,
+    pub baud_rate: Field,
+    pub torque_enable: Field,
+    pub goal_position: Field,
+    pub present_position: Field,
+    /// Size of the table (bytes).
+    pub table_size: u16,
+    /// Position counts per revolution.
+    pub counts_per_rev: u32,
+}
+
+/// XH540-W150 (protocol 2.0): paper B's joint motor.
+pub const XH540_W150: Model = Model {
+    name: "XH540-W150",
+    number: 1110,
+    protocol: 2,
+    model_number: ro(0, 2),
+    firmware: ro(6, 1),
+    id: rw(7, 1),
+    baud_rate: rw(8, 1),
+    torque_enable: rw(64, 1),
+    goal_position: rw(116, 4),
+    present_position: ro(132, 4),
+    table_size: 147,
+    counts_per_rev: 4096,
+};
+
+/// AX-12A (protocol 1.0): paper B's pivot servo.
+pub const AX_12A: Model = Model {
+    name: "AX-12A",
+    number: 12,
+    protocol: 1,
+    model_number: ro(0, 2),
+    firmware: ro(2, 1),
+    id: rw(3, 1),
+    baud_rate: rw(4, 1),
+    torque_enable: rw(24, 1),
+    goal_position: rw(30, 2),
+    present_position: ro(36, 2),
+    table_size: 50,
+    // 0..1023 over 300°.
+    counts_per_rev: 1228,
+};
+
+/// The models known, for `rig scan` and config checks.
+pub const MODELS: [Model; 2] = [XH540_W150, AX_12A];
+
+/// The model with this model number.
+pub fn by_number(number: u16) -> Option<&'static Model> {
+    MODELS.iter().find(|m| m.number == number)
+}
+
+impl Model {
+    /// Whether [address, address + size) lies in writable fields only.
+    pub fn may_write(&self, address: u16, size: u16) -> bool {
+        let fields = [
+            self.id,
+            self.baud_rate,
+            self.torque_enable,
+            self.goal_position,
+        ];
+        (address..address.saturating_add(size)).all(|a| {
+            fields
+                .iter()
+                .any(|f| f.writable && a >= f.address && a < f.address + f.size)
+        })
+    }
+}
