@@ -12,6 +12,7 @@ use std::time::Duration;
 use serial2::SerialPort;
 
 use crate::models::Model;
+use crate::protocol1;
 use crate::protocol2::{BROADCAST, Packet, Parsed, error, instruction, parse};
 
 /// Faults to inject into a servo's next replies.
@@ -154,64 +155,147 @@ fn serve(port: SerialPort, servos: &Servos, stop: &AtomicBool) {
             Err(_) => return,
         }
         loop {
-            match parse(&buf) {
-                Parsed::Incomplete => break,
-                Parsed::Noise(n) | Parsed::BadCrc(n) => {
-                    buf.drain(..n);
+            let (request, used) = match parse_any(&buf) {
+                Any::Incomplete => break,
+                Any::Skip(n) => (None, n),
+                Any::Request(r, n) => (Some(r), n),
+            };
+            buf.drain(..used);
+            let Some(r) = request else { continue };
+            let replies = {
+                let mut s = servos.lock().unwrap_or_else(|p| p.into_inner());
+                answer(&mut s, &r)
+            };
+            for (delay, bytes) in replies {
+                if !delay.is_zero() {
+                    std::thread::sleep(delay);
                 }
-                Parsed::Packet(p, n) => {
-                    buf.drain(..n);
-                    let replies = {
-                        let mut s = servos.lock().unwrap_or_else(|p| p.into_inner());
-                        answer(&mut s, &p)
-                    };
-                    for (delay, bytes) in replies {
-                        if !delay.is_zero() {
-                            std::thread::sleep(delay);
-                        }
-                        if port.write_all(&bytes).is_err() {
-                            return;
-                        }
-                    }
+                if port.write_all(&bytes).is_err() {
+                    return;
                 }
             }
         }
     }
 }
 
-/// The replies (delay, bytes) to one instruction, in bus order.
-fn answer(servos: &mut BTreeMap<u8, VirtualServo>, p: &Packet) -> Vec<(Duration, Vec<u8>)> {
-    let u16_at = |i: usize| -> Option<u16> {
-        Some(u16::from_le_bytes([
-            *p.params.get(i)?,
-            *p.params.get(i + 1)?,
-        ]))
+/// An instruction of either protocol.
+#[derive(Debug, Clone, PartialEq, Eq)]
+struct Request {
+    protocol: u8,
+    id: u8,
+    instruction: u8,
+    params: Vec<u8>,
+}
+
+enum Any {
+    Incomplete,
+    Skip(usize),
+    Request(Request, usize),
+}
+
+/// The first packet of either protocol (a bus may mix them: 2.0 starts FF FF FD 00).
+fn parse_any(buf: &[u8]) -> Any {
+    let Some(i) = buf.windows(2).position(|w| w == [0xFF, 0xFF]) else {
+        return match buf.len() {
+            0 | 1 => Any::Incomplete,
+            n => Any::Skip(n - 1),
+        };
     };
+    let Some(&third) = buf.get(i + 2) else {
+        return Any::Incomplete;
+    };
+    if third == 0xFD {
+        match parse(&buf[i..]) {
+            Parsed::Incomplete => Any::Incomplete,
+            Parsed::Noise(n) | Parsed::BadCrc(n) => Any::Skip(i + n),
+            Parsed::Packet(p, n) => Any::Request(
+                Request {
+                    protocol: 2,
+                    id: p.id,
+                    instruction: p.instruction,
+                    params: p.params,
+                },
+                i + n,
+            ),
+        }
+    } else {
+        match protocol1::parse(&buf[i..]) {
+            protocol1::Parsed::Incomplete => Any::Incomplete,
+            protocol1::Parsed::Noise(n) | protocol1::Parsed::BadChecksum(n) => Any::Skip(i + n),
+            protocol1::Parsed::Frame(f, n) => Any::Request(
+                Request {
+                    protocol: 1,
+                    id: f.id,
+                    instruction: f.code,
+                    params: f.params,
+                },
+                i + n,
+            ),
+        }
+    }
+}
+
+/// Protocol 1.0's range-error bit (1.0 has no access error).
+const P1_RANGE: u8 = 0x08;
+const P1_INSTRUCTION: u8 = 0x40;
+
+/// The replies (delay, bytes) to one instruction, in bus order. Only servos of the packet's
+/// protocol answer.
+fn answer(servos: &mut BTreeMap<u8, VirtualServo>, r: &Request) -> Vec<(Duration, Vec<u8>)> {
+    let p2 = r.protocol == 2;
+    // Addresses and counts are 2 bytes in 2.0, 1 byte in 1.0.
+    let w = if p2 { 2 } else { 1 };
+    let num = |i: usize| -> Option<u16> {
+        if p2 {
+            Some(u16::from_le_bytes([
+                *r.params.get(i)?,
+                *r.params.get(i + 1)?,
+            ]))
+        } else {
+            r.params.get(i).map(|b| u16::from(*b))
+        }
+    };
+    let (access, bad_instruction) = if p2 {
+        (error::ACCESS, error::INSTRUCTION)
+    } else {
+        (P1_RANGE, P1_INSTRUCTION)
+    };
+    let speaks = |s: &VirtualServo| s.model.protocol == r.protocol;
     let mut out: Vec<(u8, Result<Vec<u8>, u8>)> = Vec::new();
-    match p.instruction {
+    match r.instruction {
         instruction::PING => {
             for (&id, s) in servos.iter() {
-                if p.id == id || p.id == BROADCAST {
-                    let mut r = s.model.number.to_le_bytes().to_vec();
-                    r.push(s.get(s.model.firmware) as u8);
-                    out.push((id, Ok(r)));
+                if (r.id == id || r.id == BROADCAST) && speaks(s) {
+                    let data = if p2 {
+                        let mut d = s.model.number.to_le_bytes().to_vec();
+                        d.push(s.get(s.model.firmware) as u8);
+                        d
+                    } else {
+                        vec![]
+                    };
+                    out.push((id, Ok(data)));
                 }
             }
         }
         instruction::READ => {
-            if let (Some(s), Some(a), Some(n)) = (servos.get(&p.id), u16_at(0), u16_at(2)) {
-                out.push((p.id, s.read(a, n)));
+            if let (Some(s), Some(a), Some(n)) = (servos.get(&r.id), num(0), num(w))
+                && speaks(s)
+            {
+                out.push((r.id, s.read(a, n).map_err(|_| access)));
             }
         }
         instruction::WRITE => {
-            if let (Some(s), Some(a)) = (servos.get_mut(&p.id), u16_at(0)) {
-                out.push((p.id, s.write(a, &p.params[2..]).map(|()| vec![])));
+            if let (Some(s), Some(a)) = (servos.get_mut(&r.id), num(0))
+                && s.model.protocol == r.protocol
+            {
+                let res = s.write(a, &r.params[w..]).map(|()| vec![]);
+                out.push((r.id, res.map_err(|_| access)));
             }
         }
-        instruction::SYNC_READ => {
-            if let (Some(a), Some(n)) = (u16_at(0), u16_at(2)) {
-                for &id in p.params.get(4..).unwrap_or_default() {
-                    if let Some(s) = servos.get(&id) {
+        instruction::SYNC_READ if p2 => {
+            if let (Some(a), Some(n)) = (num(0), num(2)) {
+                for &id in r.params.get(4..).unwrap_or_default() {
+                    if let Some(s) = servos.get(&id).filter(|s| speaks(s)) {
                         out.push((id, s.read(a, n)));
                     }
                 }
@@ -219,11 +303,12 @@ fn answer(servos: &mut BTreeMap<u8, VirtualServo>, p: &Packet) -> Vec<(Duration,
         }
         instruction::SYNC_WRITE => {
             // Broadcast: no replies.
-            if let (Some(a), Some(n)) = (u16_at(0), u16_at(2)) {
+            if let (Some(a), Some(n)) = (num(0), num(w)) {
                 let n = usize::from(n);
-                for rec in p.params.get(4..).unwrap_or_default().chunks(n + 1) {
+                for rec in r.params.get(2 * w..).unwrap_or_default().chunks(n + 1) {
                     if rec.len() == n + 1
                         && let Some(s) = servos.get_mut(&rec[0])
+                        && s.model.protocol == r.protocol
                     {
                         let _ = s.write(a, &rec[1..]);
                         s.received += 1;
@@ -232,14 +317,13 @@ fn answer(servos: &mut BTreeMap<u8, VirtualServo>, p: &Packet) -> Vec<(Duration,
             }
         }
         _ => {
-            if let Some(s) = servos.get(&p.id) {
-                let _ = s;
-                out.push((p.id, Err(error::INSTRUCTION)));
+            if servos.get(&r.id).is_some_and(speaks) {
+                out.push((r.id, Err(bad_instruction)));
             }
         }
     }
     let mut replies = Vec::new();
-    for (id, r) in out {
+    for (id, res) in out {
         let Some(s) = servos.get_mut(&id) else {
             continue;
         };
@@ -248,11 +332,15 @@ fn answer(servos: &mut BTreeMap<u8, VirtualServo>, p: &Packet) -> Vec<(Duration,
             s.faults.drop_replies -= 1;
             continue;
         }
-        let mut bytes = match r {
-            Ok(params) => Packet::status(id, 0, &params),
-            Err(e) => Packet::status(id, e, &[]),
-        }
-        .encode();
+        let (code, params) = match res {
+            Ok(params) => (0, params),
+            Err(e) => (e, vec![]),
+        };
+        let mut bytes = if p2 {
+            Packet::status(id, code, &params).encode()
+        } else {
+            protocol1::Frame { id, code, params }.encode()
+        };
         if s.faults.corrupt_replies > 0 {
             s.faults.corrupt_replies -= 1;
             let n = bytes.len();
@@ -333,5 +421,41 @@ mod tests {
         assert_eq!(bus.ping(1).unwrap().data.model, 1110);
         // An AX-12A's table is there too (protocol 1.0 on the wire comes with its own bus).
         assert_eq!(VirtualServo::new(AX_12A, 11).get(AX_12A.model_number), 12);
+    }
+
+    #[test]
+    fn a_mixed_bus_serves_the_ax12a_in_protocol_1_and_the_xh540_in_protocol_2() {
+        let (vb, port) = VirtualBus::start(vec![
+            VirtualServo::new(XH540_W150, 1),
+            VirtualServo::new(AX_12A, 11),
+        ])
+        .unwrap();
+        let mut p1 = crate::protocol1::Bus1::new(port, Duration::from_millis(50));
+        assert_eq!(p1.ping(11).unwrap(), 12);
+        // The protocol-2.0 servo stays silent to protocol 1.0.
+        let e = p1.ping(1).unwrap_err();
+        assert!(e.to_string().contains("servo 1: no reply"), "{e}");
+        p1.write(
+            11,
+            AX_12A.goal_position.address as u8,
+            &600u16.to_le_bytes(),
+        )
+        .unwrap();
+        assert_eq!(vb.lock()[&11].get(AX_12A.goal_position), 600);
+        vb.lock()
+            .get_mut(&11)
+            .unwrap()
+            .set(AX_12A.present_position, 598);
+        assert_eq!(
+            p1.read_u16(11, AX_12A.present_position.address as u8)
+                .unwrap(),
+            598
+        );
+        let e = p1.write(11, 0, &[1, 2]).unwrap_err();
+        assert!(e.to_string().contains("servo 11: error status 0x08"), "{e}");
+        vb.lock().get_mut(&11).unwrap().faults.corrupt_replies = 1;
+        let e = p1.ping(11).unwrap_err();
+        assert!(e.to_string().contains("checksum"), "{e}");
+        assert_eq!(p1.ping(11).unwrap(), 12);
     }
 }
