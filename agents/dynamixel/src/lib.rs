@@ -8,4 +8,5 @@
 pub mod models;
 pub mod protocol1;
 pub mod protocol2;
+pub mod scan;
 pub mod virtual_bus;

@@ -4,6 +4,7 @@
 //! dropped replies, corrupt checksums, late replies.
 
 use std::collections::BTreeMap;
+use std::path::PathBuf;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::{Arc, Mutex, MutexGuard};
 use std::thread::JoinHandle;
@@ -100,6 +101,7 @@ pub struct VirtualBus {
     pub servos: Servos,
     stop: Arc<AtomicBool>,
     thread: Option<JoinHandle<()>>,
+    hold: Option<SerialPort>,
 }
 
 impl VirtualBus {
@@ -124,9 +126,23 @@ impl VirtualBus {
                 servos,
                 stop,
                 thread: Some(thread),
+                hold: None,
             },
             client,
         ))
+    }
+
+    /// Starts the bus and keeps the client end's device path (e.g. /dev/pts/3) for another
+    /// process to open; the client end opened here is closed. Linux only (/proc).
+    pub fn start_with_path(servos: Vec<VirtualServo>) -> std::io::Result<(Self, PathBuf)> {
+        let (bus, client) = Self::start(servos)?;
+        let fd = std::os::unix::io::AsRawFd::as_raw_fd(&client);
+        let path = std::fs::read_link(format!("/proc/self/fd/{fd}"))?;
+        // Hold this client end open (unread): while one is open, closing another process's
+        // end does not hang the line up, and the device node stays.
+        let mut bus = bus;
+        bus.hold = Some(client);
+        Ok((bus, path))
     }
 
     /// The servos, locked.
@@ -152,7 +168,11 @@ fn serve(port: SerialPort, servos: &Servos, stop: &AtomicBool) {
             Ok(n) => buf.extend_from_slice(&chunk[..n]),
             Err(e) if e.kind() == std::io::ErrorKind::TimedOut => continue,
             Err(e) if e.kind() == std::io::ErrorKind::WouldBlock => continue,
-            Err(_) => return,
+            // No client end open right now (EIO on a pseudo-terminal): wait for one.
+            Err(_) => {
+                std::thread::sleep(Duration::from_millis(10));
+                continue;
+            }
         }
         loop {
             let (request, used) = match parse_any(&buf) {
@@ -356,6 +376,7 @@ mod tests {
     use super::*;
     use crate::models::{AX_12A, XH540_W150};
     use dynamixel2::Bus;
+    use std::path::Path;
 
     fn bus(servos: Vec<VirtualServo>) -> (VirtualBus, Bus<Vec<u8>, Vec<u8>>) {
         let (vb, port) = VirtualBus::start(servos).unwrap();
@@ -457,5 +478,28 @@ mod tests {
         let e = p1.ping(11).unwrap_err();
         assert!(e.to_string().contains("checksum"), "{e}");
         assert_eq!(p1.ping(11).unwrap(), 12);
+    }
+
+    #[test]
+    fn scans_find_each_protocols_servos_through_a_device_path() {
+        let (_vb, path) = VirtualBus::start_with_path(vec![
+            VirtualServo::new(XH540_W150, 1),
+            VirtualServo::new(XH540_W150, 3),
+            VirtualServo::new(AX_12A, 11),
+        ])
+        .unwrap();
+        assert!(path.starts_with("/dev/pts"), "{}", path.display());
+        let two = crate::scan::scan(&path, 1_000_000, 2).unwrap();
+        let ids: Vec<(u8, &str)> = two.iter().map(|f| (f.id, f.model.as_str())).collect();
+        assert_eq!(ids, [(1, "XH540-W150"), (3, "XH540-W150")]);
+        let one = crate::scan::scan(&path, 1_000_000, 1).unwrap();
+        assert_eq!(one.len(), 1);
+        assert_eq!((one[0].id, one[0].model_number), (11, 12));
+        let e = crate::scan::scan(Path::new("/dev/no-such-bus"), 57_600, 2).unwrap_err();
+        assert!(
+            e.to_string()
+                .starts_with("/dev/no-such-bus: cannot open at 57600 baud"),
+            "{e}"
+        );
     }
 }

@@ -17,6 +17,7 @@
 //! - `rig identify` → [`identify`] → `rig_model::identify` (residual → missing effect →
 //!   augmented model, before/after on held-out data); files in [`identify_data`], plots in
 //!   [`identify_plots`];
+//! - `rig scan` → [`scan`] → `rig_dynamixel::scan` (Dynamixel protocols 2.0 and 1.0);
 //! - `rig reproduce` → [`reproduce`] → `rig_sim::reproduce` (the papers' experiments); the
 //!   end-effector force there comes from `rig_model::estimator::RobotEstimator`.
 
@@ -30,6 +31,7 @@ mod identify_plots;
 mod progress;
 mod record;
 mod reproduce;
+mod scan;
 mod sim;
 mod up;
 mod validate;
@@ -86,6 +88,8 @@ enum Command {
     /// Close the loop with measured data: fit a declared model, trace its residual to the
     /// effects it lacks, add those that pay off, report the held-out error before and after.
     Identify(identify::Args),
+    /// List the Dynamixel servos on a serial bus: ID, model number, model.
+    Scan(scan::Args),
     /// Show a running rig live in Rerun: hysteresis loops, stiffness, end-effector force,
     /// allocations (spawns the viewer when `rerun` is on PATH, else saves an .rrd).
     Viz(viz::Args),
@@ -107,6 +111,7 @@ fn main() -> ExitCode {
         Command::Sim(a) => sim::run(&a),
         Command::Reproduce(a) => reproduce::run(&a),
         Command::Identify(a) => identify::run(&a),
+        Command::Scan(a) => scan::run(&a),
         Command::Bench(a) => bench::run(&a),
         Command::Viz(a) => viz::run(&a),
     };
