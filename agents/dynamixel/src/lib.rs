@@ -1,12 +1,18 @@
 //! # rig-dynamixel — the Dynamixel side of the joint agent
 //!
-//! Work in progress for the hardware issue: so far the device side of Dynamixel protocol 2.0
-//! ([`protocol2`]), both sides of protocol 1.0 ([`protocol1`], for the AX-12A), the control tables of the servos paper B's rig uses ([`models`]), and
-//! virtual servos that answer on one end of a pseudo-terminal pair while the real client
-//! library (dynamixel2) talks to the other ([`virtual_bus`]), with fault injection.
+//! Work in progress for the hardware issue. So far:
+//! - [`protocol2`]: the device side of Dynamixel protocol 2.0 (the client is dynamixel2);
+//! - [`protocol1`]: both sides of protocol 1.0, which paper B's AX-12A pivot servos speak;
+//! - [`models`]: the control tables of the servos paper B's rig uses;
+//! - [`servos`]: one bus with servos of both protocols, bounded retries, errors naming the
+//!   bus and the servo;
+//! - [`scan`]: what answers on a bus (`rig scan`);
+//! - [`virtual_bus`]: virtual servos on one end of a pseudo-terminal pair, the real client
+//!   libraries on the other, with injected faults.
 
 pub mod models;
 pub mod protocol1;
 pub mod protocol2;
 pub mod scan;
+pub mod servos;
 pub mod virtual_bus;

@@ -44,6 +44,10 @@ pub struct Model {
     pub table_size: u16,
     /// Position counts per revolution.
     pub counts_per_rev: u32,
+    /// Largest goal position (counts); positions run from 0.
+    pub max_position: u32,
+    /// The count at 0 rad.
+    pub center: u32,
 }
 
 /// XH540-W150 (protocol 2.0): paper B's joint motor.
@@ -60,6 +64,8 @@ pub const XH540_W150: Model = Model {
     present_position: ro(132, 4),
     table_size: 147,
     counts_per_rev: 4096,
+    max_position: 4095,
+    center: 2048,
 };
 
 /// AX-12A (protocol 1.0): paper B's pivot servo.
@@ -77,6 +83,8 @@ pub const AX_12A: Model = Model {
     table_size: 50,
     // 0..1023 over 300°.
     counts_per_rev: 1228,
+    max_position: 1023,
+    center: 512,
 };
 
 /// The models known, for `rig scan` and config checks.
@@ -87,7 +95,26 @@ pub fn by_number(number: u16) -> Option<&'static Model> {
     MODELS.iter().find(|m| m.number == number)
 }
 
+/// The model of this name (as in the config's `main_model`, `stiffness_model`).
+pub fn by_name(name: &str) -> Option<&'static Model> {
+    MODELS.iter().find(|m| m.name.eq_ignore_ascii_case(name))
+}
+
 impl Model {
+    /// Counts to an angle [rad] from the center.
+    pub fn to_rad(&self, counts: u32) -> f64 {
+        (f64::from(counts) - f64::from(self.center)) * std::f64::consts::TAU
+            / f64::from(self.counts_per_rev)
+    }
+
+    /// An angle [rad] from the center to counts, or None outside the servo's range.
+    pub fn to_counts(&self, rad: f64) -> Option<u32> {
+        let c = (rad * f64::from(self.counts_per_rev) / std::f64::consts::TAU
+            + f64::from(self.center))
+        .round();
+        (rad.is_finite() && c >= 0.0 && c <= f64::from(self.max_position)).then_some(c as u32)
+    }
+
     /// Whether [address, address + size) lies in writable fields only.
     pub fn may_write(&self, address: u16, size: u16) -> bool {
         let fields = [

@@ -97,19 +97,19 @@ pub fn parse(buf: &[u8]) -> Parsed {
     }
 }
 
-/// Errors of a protocol-1.0 transfer; each names the servo.
+/// Errors of a protocol-1.0 transfer (the caller names the servo and the bus).
 #[derive(Debug, Error)]
 pub enum Error {
-    #[error("servo {id}: no reply within {timeout_ms} ms")]
-    Timeout { id: u8, timeout_ms: u64 },
-    #[error("servo {id}: reply with a wrong checksum")]
-    Checksum { id: u8 },
-    #[error("servo {id}: reply from servo {from} instead")]
-    WrongId { id: u8, from: u8 },
-    #[error("servo {id}: error status 0x{status:02x}")]
-    Status { id: u8, status: u8 },
-    #[error("servo {id}: reply of {got} bytes, {want} expected")]
-    Length { id: u8, got: usize, want: usize },
+    #[error("no reply within {timeout_ms} ms")]
+    Timeout { timeout_ms: u64 },
+    #[error("reply with a wrong checksum")]
+    Checksum,
+    #[error("reply from servo {from} instead")]
+    WrongId { from: u8 },
+    #[error("error status 0x{status:02x}")]
+    Status { status: u8 },
+    #[error("reply of {got} bytes, {want} expected")]
+    Length { got: usize, want: usize },
     #[error("serial port: {0}")]
     Io(#[from] std::io::Error),
 }
@@ -150,21 +150,20 @@ impl Bus1 {
                 Parsed::Frame(f, n) => {
                     self.buf.drain(..n);
                     if f.id != id {
-                        return Err(Error::WrongId { id, from: f.id });
+                        return Err(Error::WrongId { from: f.id });
                     }
                     if f.code & 0x7F != 0 {
-                        return Err(Error::Status { id, status: f.code });
+                        return Err(Error::Status { status: f.code });
                     }
                     if f.params.len() != want {
                         return Err(Error::Length {
-                            id,
                             got: f.params.len(),
                             want,
                         });
                     }
                     return Ok(f.params);
                 }
-                Parsed::BadChecksum(_) => return Err(Error::Checksum { id }),
+                Parsed::BadChecksum(_) => return Err(Error::Checksum),
                 Parsed::Noise(n) => {
                     self.buf.drain(..n);
                     continue;
@@ -174,7 +173,6 @@ impl Bus1 {
             let now = Instant::now();
             if now >= deadline {
                 return Err(Error::Timeout {
-                    id,
                     timeout_ms: self.timeout.as_millis() as u64,
                 });
             }

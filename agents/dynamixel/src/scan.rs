@@ -66,7 +66,7 @@ pub fn scan_port(port: SerialPort, name: &str, protocol: u8) -> Result<Vec<Found
                 match bus.ping(id) {
                     Ok(model) => out.push(found(id, model)),
                     Err(crate::protocol1::Error::Timeout { .. }) => {}
-                    Err(e) => return Err(bus_err(e.to_string())),
+                    Err(e) => return Err(bus_err(format!("servo {id}: {e}"))),
                 }
             }
             Ok(out)

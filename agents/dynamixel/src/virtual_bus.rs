@@ -455,7 +455,7 @@ mod tests {
         assert_eq!(p1.ping(11).unwrap(), 12);
         // The protocol-2.0 servo stays silent to protocol 1.0.
         let e = p1.ping(1).unwrap_err();
-        assert!(e.to_string().contains("servo 1: no reply"), "{e}");
+        assert!(e.to_string().starts_with("no reply"), "{e}");
         p1.write(
             11,
             AX_12A.goal_position.address as u8,
@@ -473,7 +473,7 @@ mod tests {
             598
         );
         let e = p1.write(11, 0, &[1, 2]).unwrap_err();
-        assert!(e.to_string().contains("servo 11: error status 0x08"), "{e}");
+        assert_eq!(e.to_string(), "error status 0x08");
         vb.lock().get_mut(&11).unwrap().faults.corrupt_replies = 1;
         let e = p1.ping(11).unwrap_err();
         assert!(e.to_string().contains("checksum"), "{e}");
