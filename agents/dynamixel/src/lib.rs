@@ -3,6 +3,8 @@
 //! Work in progress for the hardware issue. So far:
 //! - [`protocol2`]: the device side of Dynamixel protocol 2.0 (the client is dynamixel2);
 //! - [`protocol1`]: both sides of protocol 1.0, which paper B's AX-12A pivot servos speak;
+//! - [`encoder`]: the deflection encoders through a serial bridge (the frames the bridge's
+//!   firmware speaks), and a virtual bridge;
 //! - [`models`]: the control tables of the servos paper B's rig uses;
 //! - [`servos`]: one bus with servos of both protocols, bounded retries, errors naming the
 //!   bus and the servo;
@@ -10,6 +12,7 @@
 //! - [`virtual_bus`]: virtual servos on one end of a pseudo-terminal pair, the real client
 //!   libraries on the other, with injected faults.
 
+pub mod encoder;
 pub mod models;
 pub mod protocol1;
 pub mod protocol2;

@@ -1,0 +1,346 @@
+//! The deflection encoder through a serial bridge (`interface = "serial"` in the config), as
+//! paper B reads its AS5048A through an Arduino: the bridge reads the encoders over SPI when
+//! asked and answers on a serial line. The frames (our definition, documented here for the
+//! bridge's firmware):
+//!
+//! ```text
+//! request   A5 | N                                  read encoders 0..N-1
+//! reply     5A | N | (ANGLE_L ANGLE_H FLAGS) × N | CHECKSUM
+//! ```
+//! ANGLE is the AS5048A's 14-bit angle (0..16383), FLAGS bit 0 its error flag (a parity or
+//! framing error on SPI), bit 1 a magnet out of range (the diagnostics register's COMP
+//! bits). CHECKSUM = !(sum of every reply byte before it), low byte. Asking per tick keeps
+//! the encoder sampled in step with the servos.
+
+use std::time::{Duration, Instant};
+
+use serial2::SerialPort;
+use thiserror::Error;
+
+/// Request and reply markers.
+pub const REQUEST: u8 = 0xA5;
+pub const REPLY: u8 = 0x5A;
+/// AS5048A counts per revolution.
+pub const COUNTS: u16 = 16384;
+
+/// One encoder's reading.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Reading {
+    pub counts: u16,
+    /// The sensor flagged an SPI error.
+    pub error: bool,
+    /// The magnet is too far or too close.
+    pub magnet: bool,
+}
+
+impl Reading {
+    /// The angle [rad] in [−π, π) from `zero` counts.
+    pub fn rad_from(&self, zero: u16) -> f64 {
+        let d = (i32::from(self.counts) - i32::from(zero)).rem_euclid(i32::from(COUNTS));
+        let d = if d >= i32::from(COUNTS) / 2 {
+            d - i32::from(COUNTS)
+        } else {
+            d
+        };
+        f64::from(d) * std::f64::consts::TAU / f64::from(COUNTS)
+    }
+}
+
+/// The reply frame for `readings`.
+pub fn encode_reply(readings: &[Reading]) -> Vec<u8> {
+    let mut out = vec![REPLY, readings.len() as u8];
+    for r in readings {
+        out.extend_from_slice(&(r.counts & 0x3FFF).to_le_bytes());
+        out.push(u8::from(r.error) | (u8::from(r.magnet) << 1));
+    }
+    let sum = out.iter().fold(0u8, |s, b| s.wrapping_add(*b));
+    out.push(!sum);
+    out
+}
+
+#[derive(Debug, Error)]
+pub enum EncoderError {
+    #[error("{bridge}: no reply within {timeout_ms} ms (gave up after {attempts} attempts)")]
+    Timeout {
+        bridge: String,
+        timeout_ms: u64,
+        attempts: u32,
+    },
+    #[error("{bridge}: reply with a wrong checksum (gave up after {attempts} attempts)")]
+    Checksum { bridge: String, attempts: u32 },
+    #[error("{bridge}: encoder {index} reports {what}")]
+    Sensor {
+        bridge: String,
+        index: usize,
+        what: &'static str,
+    },
+    #[error("{bridge}: {source}")]
+    Io {
+        bridge: String,
+        source: std::io::Error,
+    },
+}
+
+/// Why one request failed.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum Fail {
+    Timeout,
+    Checksum,
+}
+
+/// The bridge, seen from the joint board.
+#[derive(Debug)]
+pub struct EncoderBridge {
+    name: String,
+    port: SerialPort,
+    timeout: Duration,
+    pub retries: u32,
+}
+
+impl EncoderBridge {
+    pub fn new(port: SerialPort, name: &str, timeout: Duration) -> Self {
+        Self {
+            name: name.to_string(),
+            port,
+            timeout,
+            retries: 2,
+        }
+    }
+
+    /// Reads `n` encoders; a sensor's error or magnet flag is an error naming it.
+    pub fn read(&mut self, n: u8) -> Result<Vec<Reading>, EncoderError> {
+        let attempts = self.retries + 1;
+        let mut last = Fail::Timeout;
+        for _ in 0..attempts {
+            match self.transfer(n)? {
+                Ok(r) => {
+                    for (index, x) in r.iter().enumerate() {
+                        let what = if x.error {
+                            "an SPI error"
+                        } else if x.magnet {
+                            "its magnet out of range"
+                        } else {
+                            continue;
+                        };
+                        return Err(EncoderError::Sensor {
+                            bridge: self.name.clone(),
+                            index,
+                            what,
+                        });
+                    }
+                    return Ok(r);
+                }
+                Err(f) => last = f,
+            }
+        }
+        if last == Fail::Checksum {
+            return Err(EncoderError::Checksum {
+                bridge: self.name.clone(),
+                attempts,
+            });
+        }
+        Err(EncoderError::Timeout {
+            bridge: self.name.clone(),
+            timeout_ms: self.timeout.as_millis() as u64,
+            attempts,
+        })
+    }
+
+    /// One request; a timeout or a bad reply is an inner error (retried).
+    fn transfer(&mut self, n: u8) -> Result<Result<Vec<Reading>, Fail>, EncoderError> {
+        let io = |source| EncoderError::Io {
+            bridge: self.name.clone(),
+            source,
+        };
+        self.port.discard_input_buffer().map_err(io)?;
+        self.port.write_all(&[REQUEST, n]).map_err(io)?;
+        let want = 3 + 3 * usize::from(n);
+        let mut buf: Vec<u8> = Vec::with_capacity(want);
+        let deadline = Instant::now() + self.timeout;
+        let mut chunk = [0u8; 64];
+        loop {
+            // Skip anything before the reply marker.
+            if let Some(k) = buf.iter().position(|b| *b == REPLY) {
+                buf.drain(..k);
+            } else {
+                buf.clear();
+            }
+            if buf.len() >= want {
+                let body = &buf[..want - 1];
+                let sum = body.iter().fold(0u8, |s, b| s.wrapping_add(*b));
+                if buf[1] != n || !sum != buf[want - 1] {
+                    return Ok(Err(Fail::Checksum));
+                }
+                let readings = body[2..]
+                    .chunks(3)
+                    .map(|c| Reading {
+                        counts: u16::from_le_bytes([c[0], c[1]]) & 0x3FFF,
+                        error: c[2] & 1 != 0,
+                        magnet: c[2] & 2 != 0,
+                    })
+                    .collect();
+                return Ok(Ok(readings));
+            }
+            let now = Instant::now();
+            if now >= deadline {
+                return Ok(Err(Fail::Timeout));
+            }
+            self.port
+                .set_read_timeout(deadline - now)
+                .map_err(|source| EncoderError::Io {
+                    bridge: self.name.clone(),
+                    source,
+                })?;
+            match self.port.read(&mut chunk) {
+                Ok(k) => buf.extend_from_slice(&chunk[..k]),
+                Err(e) if e.kind() == std::io::ErrorKind::TimedOut => {}
+                Err(source) => {
+                    return Err(EncoderError::Io {
+                        bridge: self.name.clone(),
+                        source,
+                    });
+                }
+            }
+        }
+    }
+}
+
+/// A virtual bridge for tests: answers requests on one end of a pseudo-terminal pair with the
+/// readings in [`VirtualEncoders::readings`], with injected faults.
+#[derive(Debug)]
+pub struct VirtualEncoders {
+    pub state: std::sync::Arc<std::sync::Mutex<VirtualState>>,
+    stop: std::sync::Arc<std::sync::atomic::AtomicBool>,
+    thread: Option<std::thread::JoinHandle<()>>,
+}
+
+/// What the virtual bridge answers.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct VirtualState {
+    pub readings: Vec<Reading>,
+    /// Replies to drop, and replies to corrupt, from the next one on.
+    pub drop_replies: u32,
+    pub corrupt_replies: u32,
+}
+
+impl VirtualEncoders {
+    /// Starts the bridge; returns it and the client end of the line.
+    pub fn start(readings: Vec<Reading>) -> std::io::Result<(Self, SerialPort)> {
+        use std::sync::atomic::Ordering;
+        let (mut device, client) = SerialPort::pair()?;
+        device.set_read_timeout(Duration::from_millis(20))?;
+        let state = std::sync::Arc::new(std::sync::Mutex::new(VirtualState {
+            readings,
+            ..Default::default()
+        }));
+        let stop = std::sync::Arc::new(std::sync::atomic::AtomicBool::new(false));
+        let thread = {
+            let (state, stop) = (state.clone(), stop.clone());
+            std::thread::spawn(move || {
+                let mut buf = Vec::new();
+                let mut chunk = [0u8; 64];
+                while !stop.load(Ordering::Relaxed) {
+                    match device.read(&mut chunk) {
+                        Ok(k) => buf.extend_from_slice(&chunk[..k]),
+                        Err(_) => continue,
+                    }
+                    while let Some(k) = buf.iter().position(|b| *b == REQUEST) {
+                        if buf.len() < k + 2 {
+                            break;
+                        }
+                        let n = usize::from(buf[k + 1]);
+                        buf.drain(..k + 2);
+                        let mut st = state.lock().unwrap_or_else(|p| p.into_inner());
+                        if st.drop_replies > 0 {
+                            st.drop_replies -= 1;
+                            continue;
+                        }
+                        let take: Vec<Reading> = st.readings.iter().copied().take(n).collect();
+                        let mut reply = encode_reply(&take);
+                        if st.corrupt_replies > 0 {
+                            st.corrupt_replies -= 1;
+                            let last = reply.len() - 1;
+                            reply[last] ^= 0x33;
+                        }
+                        drop(st);
+                        let _ = device.write_all(&reply);
+                    }
+                }
+            })
+        };
+        Ok((
+            Self {
+                state,
+                stop,
+                thread: Some(thread),
+            },
+            client,
+        ))
+    }
+}
+
+impl Drop for VirtualEncoders {
+    fn drop(&mut self) {
+        self.stop.store(true, std::sync::atomic::Ordering::Relaxed);
+        if let Some(t) = self.thread.take() {
+            let _ = t.join();
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn at(counts: u16) -> Reading {
+        Reading {
+            counts,
+            error: false,
+            magnet: false,
+        }
+    }
+
+    #[test]
+    fn angles_wrap_around_the_zero() {
+        assert_eq!(at(100).rad_from(100), 0.0);
+        let one = std::f64::consts::TAU / 16384.0;
+        assert!((at(5).rad_from(16380) - 9.0 * one).abs() < 1e-15);
+        assert!((at(16380).rad_from(5) + 9.0 * one).abs() < 1e-15);
+        assert!((at(8192).rad_from(0) + std::f64::consts::PI).abs() < 1e-15);
+    }
+
+    #[test]
+    fn the_bridge_reads_retries_and_names_what_fails() {
+        let (v, port) = VirtualEncoders::start(vec![at(1000), at(16383), at(0)]).unwrap();
+        let mut b = EncoderBridge::new(port, "/dev/bridge", Duration::from_millis(30));
+        let r = b.read(3).unwrap();
+        assert_eq!(
+            r.iter().map(|r| r.counts).collect::<Vec<_>>(),
+            [1000, 16383, 0]
+        );
+        v.state.lock().unwrap().drop_replies = 1;
+        v.state.lock().unwrap().corrupt_replies = 1;
+        assert_eq!(
+            b.read(2).unwrap().len(),
+            2,
+            "one lost and one corrupt reply are retried"
+        );
+        v.state.lock().unwrap().corrupt_replies = 10;
+        let e = b.read(1).unwrap_err().to_string();
+        assert_eq!(
+            e,
+            "/dev/bridge: reply with a wrong checksum (gave up after 3 attempts)"
+        );
+        v.state.lock().unwrap().corrupt_replies = 0;
+        v.state.lock().unwrap().drop_replies = 10;
+        let e = b.read(1).unwrap_err().to_string();
+        assert_eq!(
+            e,
+            "/dev/bridge: no reply within 30 ms (gave up after 3 attempts)"
+        );
+        v.state.lock().unwrap().drop_replies = 0;
+        v.state.lock().unwrap().readings[1].magnet = true;
+        let e = b.read(3).unwrap_err().to_string();
+        assert_eq!(e, "/dev/bridge: encoder 1 reports its magnet out of range");
+    }
+}
