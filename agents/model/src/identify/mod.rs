@@ -680,7 +680,16 @@ pub fn identify(
                 done += 1;
                 progress(done, total.max(done));
             };
-            let found = search(&p, &sig, &chosen, *e, grid, &train, &validate, &mut tick);
+            let found = search(
+                &p,
+                Some(&sig),
+                &chosen,
+                *e,
+                grid,
+                &train,
+                &validate,
+                &mut tick,
+            );
             per_effect.push((*e, found.map_or(f64::NEG_INFINITY, |f| 1.0 - f.1 / current)));
             if let Some(f) = found
                 && best.as_ref().is_none_or(|b| f.1 < b.1)
@@ -696,7 +705,6 @@ pub fn identify(
         }
         chosen.push(cand);
         gains.push(gain);
-        current = err;
         if opts.model == Declared::Restoring {
             // The declared model was fitted with the effect's share in its data (a lag
             // widens its loop, friction raises it): refit it without, and search the delay
@@ -716,11 +724,10 @@ pub fn identify(
                     .copied()
                     .filter(|c| c.effect != Effect::SensorDelay)
                     .collect();
-                let s0 = p.signals(0.0);
                 let before = chosen[k].shape;
                 if let Some((d, _)) = search(
                     &p,
-                    &s0,
+                    None,
                     &others,
                     Effect::SensorDelay,
                     grid,
@@ -734,13 +741,12 @@ pub fn identify(
                     break;
                 }
             }
-            sig = p.signals(delay_of(&chosen));
-            current = fit(&sig, &chosen, &p.tau, &train)
-                .ok_or(IdentifyError::Solve)?
-                .error_on(&p.tau, &validate);
-        } else {
-            sig = p.signals(delay_of(&chosen));
         }
+        // The new baseline (with the restoring model, against its refitted loop).
+        sig = p.signals(delay_of(&chosen));
+        current = fit(&sig, &chosen, &p.tau, &train)
+            .ok_or(IdentifyError::Solve)?
+            .error_on(&p.tau, &validate);
     }
     progress(total.max(done), total.max(done));
 
@@ -859,11 +865,12 @@ fn delay_of(c: &[Shaped]) -> f64 {
 
 /// The best shape of `effect` on its grid, refined between the best point's neighbours:
 /// the effects in `chosen` plus it, fitted on `train`, scored (RMSE) on `validate`. Shapes
-/// whose coefficient has the wrong sign for the effect's meaning are skipped.
+/// whose coefficient has the wrong sign for the effect's meaning are skipped. `sig` are the
+/// signals of `chosen`; a sensor delay makes its own per shape and needs none.
 #[allow(clippy::too_many_arguments)]
 fn search(
     p: &Problem,
-    sig: &Signals,
+    sig: Option<&Signals>,
     chosen: &[Shaped],
     effect: Effect,
     grid: &[f64],
@@ -876,11 +883,12 @@ fn search(
         let mut trial = chosen.to_vec();
         trial.push(cand);
         let delayed;
-        let s = if effect == Effect::SensorDelay {
-            delayed = p.signals(shape);
-            &delayed
-        } else {
-            sig
+        let s = match sig {
+            Some(s) if effect != Effect::SensorDelay => s,
+            _ => {
+                delayed = p.signals(shape);
+                &delayed
+            }
         };
         let f = fit(s, &trial, &p.tau, train)?;
         let c0 = f.part(trial.len()).first().copied().unwrap_or(0.0);
@@ -908,6 +916,10 @@ fn search(
         let hi = grid[(at + 1).min(grid.len() - 1)];
         for j in 1..8 {
             let shape = lo + (hi - lo) * j as f64 / 8.0;
+            // On an even grid the midpoint is the grid point itself, already scored.
+            if (shape - grid[at]).abs() <= 1e-12 * grid[at].abs() {
+                continue;
+            }
             if let Some(err) = trial_at(shape) {
                 scored.push((shape, err));
             }
