@@ -8,7 +8,8 @@
 //! offline.
 
 use super::Effect;
-use super::stats::least_squares;
+use super::signals::rate_sign;
+use super::stats::{combine, least_squares};
 
 /// What the monitor says about one joint.
 #[derive(Debug, Clone, PartialEq)]
@@ -167,10 +168,7 @@ impl ResidualMonitor {
             })
             .collect();
         let still = rate.iter().map(|v| v.abs()).fold(0.0f64, f64::max) * 0.02;
-        let dir: Vec<f64> = rate
-            .iter()
-            .map(|v| if v.abs() > still { v.signum() } else { 0.0 })
-            .collect();
+        let dir = rate_sign(&rate, still);
         let one = vec![1.0; n];
         let cols: [(Effect, &[f64]); 4] = [
             (Effect::Offset, &one),
@@ -179,35 +177,25 @@ impl ResidualMonitor {
             (Effect::StiffnessDrift, &x),
         ];
         let rows: Vec<usize> = (0..n).collect();
-        let ss = |e: &[f64]| e.iter().map(|v| v * v).sum::<f64>();
-        let total = ss(&r);
+        let total: f64 = r.iter().map(|v| v * v).sum();
         if total <= 0.0 {
             return None;
         }
         let refs: Vec<&[f64]> = cols.iter().map(|c| c.1).collect();
         let coefs = least_squares(&refs, &r, &rows)?;
-        let fit_ss = |use_: &[bool]| -> f64 {
-            let e: Vec<f64> = (0..n)
-                .map(|i| {
-                    r[i] - refs
-                        .iter()
-                        .zip(&coefs)
-                        .zip(use_)
-                        .filter(|(_, u)| **u)
-                        .map(|((c, k), _)| c[i] * k)
-                        .sum::<f64>()
-                })
-                .collect();
-            ss(&e)
+        // Residual sum of squares of the fit, with one regressor's share left out or none.
+        let rss_without = |left_out: Option<usize>| -> f64 {
+            let mut k = coefs.clone();
+            if let Some(j) = left_out {
+                k[j] = 0.0;
+            }
+            let fitted = combine(&refs, &k, n);
+            r.iter().zip(&fitted).map(|(a, b)| (a - b) * (a - b)).sum()
         };
-        let full = fit_ss(&[true; 4]);
+        let full = rss_without(None);
         // The leading effect: the one whose removal loses the most.
         let (k, _) = (0..4)
-            .map(|k| {
-                let mut u = [true; 4];
-                u[k] = false;
-                (k, fit_ss(&u) - full)
-            })
+            .map(|k| (k, rss_without(Some(k)) - full))
             .fold((0, f64::NEG_INFINITY), |a, b| if b.1 > a.1 { b } else { a });
         Some(Diagnosis {
             present: false,
