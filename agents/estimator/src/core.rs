@@ -107,8 +107,8 @@ pub struct EstimatorCore {
     stale: Vec<bool>,
     status_seq: u64,
     ee_seq: u64,
-    /// Residual monitors, one per joint (fed where a torque sensor exists).
-    monitors: Vec<ResidualMonitor>,
+    /// Residual monitors, one per joint, made at the joint's first torque-sensor reading.
+    monitors: Vec<Option<ResidualMonitor>>,
     pub stats: CoreStats,
 }
 
@@ -199,14 +199,7 @@ impl EstimatorCore {
             stale: vec![false; n],
             status_seq: 0,
             ee_seq: 0,
-            // 2 s windows, looked at every 0.25 s (at the rig's rate).
-            monitors: vec![
-                ResidualMonitor::new(
-                    (2.0 * cfg.rate_hz).round() as usize,
-                    (0.25 * cfg.rate_hz).round() as usize
-                );
-                n
-            ],
+            monitors: vec![None; n],
             stats: CoreStats::default(),
         })
     }
@@ -418,9 +411,19 @@ impl EstimatorCore {
         let mut diagnoses = Vec::new();
         for e in &joint_out {
             let j = e.joint as usize;
+            // 2 s windows, looked at every 0.25 s.
+            let per_s = 1e9 / self.timing.period_ns.max(1) as f64;
+            let new = || {
+                ResidualMonitor::new(
+                    (2.0 * per_s).round() as usize,
+                    (0.25 * per_s).round() as usize,
+                )
+            };
             if let (Some(r), Some(Some(s)), Some(m)) =
                 (e.residual_nm, slots.get(j), self.monitors.get_mut(j))
-                && let Some(d) = m.push(e.t_acq_ns as f64 * 1e-9, s.deflection_rad, r)
+                && let Some(d) =
+                    m.get_or_insert_with(new)
+                        .push(e.t_acq_ns as f64 * 1e-9, s.deflection_rad, r)
             {
                 diagnoses.push((j, d));
             }
