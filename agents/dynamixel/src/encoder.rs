@@ -206,12 +206,11 @@ impl EncoderBridge {
 }
 
 /// A virtual bridge for tests: answers requests on one end of a pseudo-terminal pair with the
-/// readings in [`VirtualEncoders::readings`], with injected faults.
+/// readings in [`VirtualState::readings`], with injected faults.
 #[derive(Debug)]
 pub struct VirtualEncoders {
     pub state: std::sync::Arc<std::sync::Mutex<VirtualState>>,
-    stop: std::sync::Arc<std::sync::atomic::AtomicBool>,
-    thread: Option<std::thread::JoinHandle<()>>,
+    _device: crate::pty::PtyDevice,
 }
 
 /// What the virtual bridge answers.
@@ -226,65 +225,42 @@ pub struct VirtualState {
 impl VirtualEncoders {
     /// Starts the bridge; returns it and the client end of the line.
     pub fn start(readings: Vec<Reading>) -> std::io::Result<(Self, SerialPort)> {
-        use std::sync::atomic::Ordering;
-        let (mut device, client) = SerialPort::pair()?;
-        device.set_read_timeout(Duration::from_millis(20))?;
         let state = std::sync::Arc::new(std::sync::Mutex::new(VirtualState {
             readings,
             ..Default::default()
         }));
-        let stop = std::sync::Arc::new(std::sync::atomic::AtomicBool::new(false));
-        let thread = {
-            let (state, stop) = (state.clone(), stop.clone());
-            std::thread::spawn(move || {
-                let mut buf = Vec::new();
-                let mut chunk = [0u8; 64];
-                while !stop.load(Ordering::Relaxed) {
-                    match device.read(&mut chunk) {
-                        Ok(k) => buf.extend_from_slice(&chunk[..k]),
-                        Err(_) => continue,
-                    }
-                    while let Some(k) = buf.iter().position(|b| *b == REQUEST) {
-                        if buf.len() < k + 2 {
-                            break;
-                        }
-                        let n = usize::from(buf[k + 1]);
-                        buf.drain(..k + 2);
-                        let mut st = state.lock().unwrap_or_else(|p| p.into_inner());
-                        if st.drop_replies > 0 {
-                            st.drop_replies -= 1;
-                            continue;
-                        }
-                        let take: Vec<Reading> = st.readings.iter().copied().take(n).collect();
-                        let mut reply = encode_reply(&take);
-                        if st.corrupt_replies > 0 {
-                            st.corrupt_replies -= 1;
-                            let last = reply.len() - 1;
-                            reply[last] ^= 0x33;
-                        }
-                        drop(st);
-                        let _ = device.write_all(&reply);
-                    }
+        let shared = state.clone();
+        let (device, client) = crate::pty::PtyDevice::start(move |buf| {
+            let mut replies = Vec::new();
+            while let Some(k) = buf.iter().position(|b| *b == REQUEST) {
+                if buf.len() < k + 2 {
+                    break;
                 }
-            })
-        };
+                let n = usize::from(buf[k + 1]);
+                buf.drain(..k + 2);
+                let mut st = shared.lock().unwrap_or_else(|p| p.into_inner());
+                if st.drop_replies > 0 {
+                    st.drop_replies -= 1;
+                    continue;
+                }
+                let take: Vec<Reading> = st.readings.iter().copied().take(n).collect();
+                let mut reply = encode_reply(&take);
+                if st.corrupt_replies > 0 {
+                    st.corrupt_replies -= 1;
+                    let last = reply.len() - 1;
+                    reply[last] ^= 0x33;
+                }
+                replies.push((Duration::ZERO, reply));
+            }
+            replies
+        })?;
         Ok((
             Self {
                 state,
-                stop,
-                thread: Some(thread),
+                _device: device,
             },
             client,
         ))
-    }
-}
-
-impl Drop for VirtualEncoders {
-    fn drop(&mut self) {
-        self.stop.store(true, std::sync::atomic::Ordering::Relaxed);
-        if let Some(t) = self.thread.take() {
-            let _ = t.join();
-        }
     }
 }
 

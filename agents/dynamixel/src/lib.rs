@@ -10,12 +10,14 @@
 //!   bus and the servo;
 //! - [`scan`]: what answers on a bus (`rig scan`);
 //! - [`virtual_bus`]: virtual servos on one end of a pseudo-terminal pair, the real client
-//!   libraries on the other, with injected faults.
+//!   libraries on the other, with injected faults;
+//! - [`pty`]: the pseudo-terminal device those virtual parts (servos, encoder bridge) run on.
 
 pub mod encoder;
 pub mod models;
 pub mod protocol1;
 pub mod protocol2;
+pub mod pty;
 pub mod scan;
 pub mod servos;
 pub mod virtual_bus;

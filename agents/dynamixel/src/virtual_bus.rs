@@ -5,9 +5,7 @@
 
 use std::collections::BTreeMap;
 use std::path::PathBuf;
-use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::{Arc, Mutex, MutexGuard};
-use std::thread::JoinHandle;
 use std::time::Duration;
 
 use serial2::SerialPort;
@@ -15,6 +13,7 @@ use serial2::SerialPort;
 use crate::models::Model;
 use crate::protocol1;
 use crate::protocol2::{BROADCAST, Packet, Parsed, error, instruction, parse};
+use crate::pty::{PtyDevice, Reply};
 
 /// Faults to inject into a servo's next replies.
 #[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
@@ -99,102 +98,49 @@ pub type Servos = Arc<Mutex<BTreeMap<u8, VirtualServo>>>;
 #[derive(Debug)]
 pub struct VirtualBus {
     pub servos: Servos,
-    stop: Arc<AtomicBool>,
-    thread: Option<JoinHandle<()>>,
-    hold: Option<SerialPort>,
+    device: PtyDevice,
 }
 
 impl VirtualBus {
     /// Opens a pseudo-terminal pair, serves `servos` on one end and returns the other end for
     /// the client.
     pub fn start(servos: Vec<VirtualServo>) -> std::io::Result<(Self, SerialPort)> {
-        let (device, client) = SerialPort::pair()?;
-        let mut device = device;
-        device.set_read_timeout(Duration::from_millis(20))?;
         let map: BTreeMap<u8, VirtualServo> = servos
             .into_iter()
             .map(|s| (s.get(s.model.id) as u8, s))
             .collect();
         let servos: Servos = Arc::new(Mutex::new(map));
-        let stop = Arc::new(AtomicBool::new(false));
-        let thread = {
-            let (servos, stop) = (servos.clone(), stop.clone());
-            std::thread::spawn(move || serve(device, &servos, &stop))
-        };
-        Ok((
-            Self {
-                servos,
-                stop,
-                thread: Some(thread),
-                hold: None,
-            },
-            client,
-        ))
+        let shared = servos.clone();
+        let (device, client) = PtyDevice::start(move |buf| {
+            let mut replies = Vec::new();
+            loop {
+                let (request, used) = match parse_any(buf) {
+                    Any::Incomplete => break,
+                    Any::Skip(n) => (None, n),
+                    Any::Request(r, n) => (Some(r), n),
+                };
+                buf.drain(..used);
+                if let Some(r) = request {
+                    let mut s = shared.lock().unwrap_or_else(|p| p.into_inner());
+                    replies.extend(answer(&mut s, &r));
+                }
+            }
+            replies
+        })?;
+        Ok((Self { servos, device }, client))
     }
 
-    /// Starts the bus and keeps the client end's device path (e.g. /dev/pts/3) for another
-    /// process to open; the client end opened here is closed. Linux only (/proc).
+    /// Starts the bus and gives the client end's device path (e.g. /dev/pts/3) for another
+    /// process to open (see [`PtyDevice::hold_with_path`]).
     pub fn start_with_path(servos: Vec<VirtualServo>) -> std::io::Result<(Self, PathBuf)> {
-        let (bus, client) = Self::start(servos)?;
-        let fd = std::os::unix::io::AsRawFd::as_raw_fd(&client);
-        let path = std::fs::read_link(format!("/proc/self/fd/{fd}"))?;
-        // Hold this client end open (unread): while one is open, closing another process's
-        // end does not hang the line up, and the device node stays.
-        let mut bus = bus;
-        bus.hold = Some(client);
+        let (mut bus, client) = Self::start(servos)?;
+        let path = bus.device.hold_with_path(client)?;
         Ok((bus, path))
     }
 
     /// The servos, locked.
     pub fn lock(&self) -> MutexGuard<'_, BTreeMap<u8, VirtualServo>> {
         self.servos.lock().unwrap_or_else(|p| p.into_inner())
-    }
-}
-
-impl Drop for VirtualBus {
-    fn drop(&mut self) {
-        self.stop.store(true, Ordering::Relaxed);
-        if let Some(t) = self.thread.take() {
-            let _ = t.join();
-        }
-    }
-}
-
-fn serve(port: SerialPort, servos: &Servos, stop: &AtomicBool) {
-    let mut buf: Vec<u8> = Vec::new();
-    let mut chunk = [0u8; 256];
-    while !stop.load(Ordering::Relaxed) {
-        match port.read(&mut chunk) {
-            Ok(n) => buf.extend_from_slice(&chunk[..n]),
-            Err(e) if e.kind() == std::io::ErrorKind::TimedOut => continue,
-            Err(e) if e.kind() == std::io::ErrorKind::WouldBlock => continue,
-            // No client end open right now (EIO on a pseudo-terminal): wait for one.
-            Err(_) => {
-                std::thread::sleep(Duration::from_millis(10));
-                continue;
-            }
-        }
-        loop {
-            let (request, used) = match parse_any(&buf) {
-                Any::Incomplete => break,
-                Any::Skip(n) => (None, n),
-                Any::Request(r, n) => (Some(r), n),
-            };
-            buf.drain(..used);
-            let Some(r) = request else { continue };
-            let replies = {
-                let mut s = servos.lock().unwrap_or_else(|p| p.into_inner());
-                answer(&mut s, &r)
-            };
-            for (delay, bytes) in replies {
-                if !delay.is_zero() {
-                    std::thread::sleep(delay);
-                }
-                if port.write_all(&bytes).is_err() {
-                    return;
-                }
-            }
-        }
     }
 }
 
@@ -261,7 +207,7 @@ const P1_INSTRUCTION: u8 = 0x40;
 
 /// The replies (delay, bytes) to one instruction, in bus order. Only servos of the packet's
 /// protocol answer.
-fn answer(servos: &mut BTreeMap<u8, VirtualServo>, r: &Request) -> Vec<(Duration, Vec<u8>)> {
+fn answer(servos: &mut BTreeMap<u8, VirtualServo>, r: &Request) -> Vec<Reply> {
     let p2 = r.protocol == 2;
     // Addresses and counts are 2 bytes in 2.0, 1 byte in 1.0.
     let w = if p2 { 2 } else { 1 };
