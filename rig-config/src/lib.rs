@@ -82,7 +82,7 @@ pub struct Geometry {
 }
 
 /// Servo bus and IDs of one joint board.
-#[derive(Debug, Clone, PartialEq, Eq)]
+#[derive(Debug, Clone, PartialEq)]
 pub struct ServoConfig {
     pub bus: String,
     pub baud: u32,
@@ -93,6 +93,13 @@ pub struct ServoConfig {
     pub stiffness_id: u8,
     pub stiffness_model: String,
     pub stiffness_protocol: u8,
+    /// Main servo angle (from its centre) at joint angle 0 [rad].
+    pub main_zero_rad: f64,
+    /// Pivot servo angle (from its centre) at pivot displacement d = 0 [rad].
+    pub pivot_zero_rad: f64,
+    /// Rack travel per radian of the pivot servo [m/rad] (lever joints driven by the
+    /// dynamixel backend need it; `None` where the config leaves it out).
+    pub pivot_m_per_rad: Option<f64>,
 }
 
 /// How the board reads the deflection encoder.
@@ -112,6 +119,14 @@ pub struct EncoderConfig {
     pub interface: EncoderInterface,
     /// One count [rad].
     pub resolution_rad: f64,
+    /// The serial bridge's port or the spidev device (`None`: only simulated).
+    pub device: Option<String>,
+    /// Baud rate of the serial bridge.
+    pub baud: u32,
+    /// This encoder's index on the bridge.
+    pub channel: u8,
+    /// The count at zero deflection.
+    pub zero_counts: u32,
 }
 
 /// What kind of VSA a joint is, with its parameters.

@@ -61,6 +61,13 @@ pub struct RawServo {
     pub stiffness_id: u8,
     pub stiffness_model: String,
     pub stiffness_protocol: u8,
+    /// Main servo angle (from its centre) at joint angle 0.
+    pub main_zero_deg: Option<f64>,
+    /// Pivot servo angle (from its centre) at pivot displacement d = 0.
+    pub pivot_zero_deg: Option<f64>,
+    /// Rack travel per degree of the pivot servo (pinion radius × π/180; negative if the rack
+    /// moves towards the main joint as the servo turns positive).
+    pub pivot_mm_per_deg: Option<f64>,
 }
 
 #[derive(Debug, Deserialize)]
@@ -69,6 +76,14 @@ pub struct RawEncoder {
     pub kind: String,
     pub bits: u8,
     pub interface: String,
+    /// The serial bridge's port (interface = "serial") or the spidev device ("spi").
+    pub device: Option<String>,
+    /// Baud rate of the serial bridge.
+    pub baud: Option<u32>,
+    /// This encoder's index on the bridge.
+    pub channel: Option<u8>,
+    /// The count at zero deflection.
+    pub zero_counts: Option<u32>,
 }
 
 #[derive(Debug, Deserialize)]

@@ -457,7 +457,38 @@ fn servo(c: &mut Collector<'_>, p: &FieldPath, s: &RawServo) -> Option<ServoConf
             ok = false;
         }
     }
+    let mut angle = |field: &'static str, v: Option<f64>| -> f64 {
+        match v {
+            Some(v) if !v.is_finite() || v.abs() > 180.0 => {
+                c.push(
+                    &p.key(field),
+                    format!("{v} is not a servo angle from the centre in [-180, 180] deg"),
+                );
+                ok = false;
+                0.0
+            }
+            Some(v) => v.to_radians(),
+            None => 0.0,
+        }
+    };
+    let main_zero_rad = angle("main_zero_deg", s.main_zero_deg);
+    let pivot_zero_rad = angle("pivot_zero_deg", s.pivot_zero_deg);
+    let pivot_m_per_rad = match s.pivot_mm_per_deg {
+        Some(v) if !v.is_finite() || v == 0.0 || v.abs() > 10.0 => {
+            c.push(
+                &p.key("pivot_mm_per_deg"),
+                format!("{v} is not a rack travel per degree; expect e.g. 0.087 (a 5 mm pinion)"),
+            );
+            ok = false;
+            None
+        }
+        Some(v) => Some(v * 1e-3 * 180.0 / std::f64::consts::PI),
+        None => None,
+    };
     ok.then(|| ServoConfig {
+        main_zero_rad,
+        pivot_zero_rad,
+        pivot_m_per_rad,
         bus: s.bus.clone(),
         baud: s.baud,
         main_id: s.main_id,
@@ -492,11 +523,41 @@ fn encoder(c: &mut Collector<'_>, p: &FieldPath, e: &RawEncoder) -> Option<Encod
         );
         return None;
     }
+    let counts = 1u32 << e.bits;
+    if let Some(z) = e.zero_counts
+        && z >= counts
+    {
+        c.push(
+            &p.key("zero_counts"),
+            format!(
+                "{z} is not a count of a {}-bit encoder (0..{counts})",
+                e.bits
+            ),
+        );
+        return None;
+    }
+    if let Some(b) = e.baud
+        && b == 0
+    {
+        c.push(&p.key("baud"), "must be a baud rate, e.g. 115200");
+        return None;
+    }
+    if e.device.as_deref().is_some_and(|d| d.trim().is_empty()) {
+        c.push(
+            &p.key("device"),
+            "must name the bridge's port, e.g. \"/dev/ttyACM0\", or the spidev device",
+        );
+        return None;
+    }
     Some(EncoderConfig {
         model: e.kind.clone(),
         bits: e.bits,
         interface: interface?,
-        resolution_rad: 2.0 * std::f64::consts::PI / f64::from(1u32 << e.bits),
+        resolution_rad: 2.0 * std::f64::consts::PI / f64::from(counts),
+        device: e.device.clone(),
+        baud: e.baud.unwrap_or(1_000_000),
+        channel: e.channel.unwrap_or(0),
+        zero_counts: e.zero_counts.unwrap_or(0),
     })
 }
 

@@ -92,6 +92,7 @@ enum Fail {
 #[derive(Debug)]
 pub struct EncoderBridge {
     name: String,
+    baud: u32,
     port: SerialPort,
     timeout: Duration,
     pub retries: u32,
@@ -101,10 +102,37 @@ impl EncoderBridge {
     pub fn new(port: SerialPort, name: &str, timeout: Duration) -> Self {
         Self {
             name: name.to_string(),
+            baud: 0,
             port,
             timeout,
             retries: 2,
         }
+    }
+
+    /// Opens the bridge at `path`.
+    pub fn open(
+        path: &std::path::Path,
+        baud: u32,
+        timeout: Duration,
+    ) -> Result<Self, EncoderError> {
+        let name = path.display().to_string();
+        let port = SerialPort::open(path, baud).map_err(|source| EncoderError::Io {
+            bridge: name.clone(),
+            source,
+        })?;
+        let mut b = Self::new(port, &name, timeout);
+        b.baud = baud;
+        Ok(b)
+    }
+
+    /// The port's name.
+    pub fn name(&self) -> &str {
+        &self.name
+    }
+
+    /// The baud rate it was opened at (0 for a port opened elsewhere).
+    pub fn baud(&self) -> u32 {
+        self.baud
     }
 
     /// Reads `n` encoders; a sensor's error or magnet flag is an error naming it.
@@ -210,7 +238,7 @@ impl EncoderBridge {
 #[derive(Debug)]
 pub struct VirtualEncoders {
     pub state: std::sync::Arc<std::sync::Mutex<VirtualState>>,
-    _device: crate::pty::PtyDevice,
+    device: crate::pty::PtyDevice,
 }
 
 /// What the virtual bridge answers.
@@ -254,13 +282,15 @@ impl VirtualEncoders {
             }
             replies
         })?;
-        Ok((
-            Self {
-                state,
-                _device: device,
-            },
-            client,
-        ))
+        Ok((Self { state, device }, client))
+    }
+
+    /// Starts the bridge and gives the client end's device path for another process to open
+    /// (see [`crate::pty::PtyDevice::hold_with_path`]).
+    pub fn start_with_path(readings: Vec<Reading>) -> std::io::Result<(Self, std::path::PathBuf)> {
+        let (mut bridge, client) = Self::start(readings)?;
+        let path = bridge.device.hold_with_path(client)?;
+        Ok((bridge, path))
     }
 }
 

@@ -73,6 +73,7 @@ pub struct BusStats {
 #[derive(Debug)]
 pub struct ServoBus {
     name: String,
+    baud: u32,
     p2: dynamixel2::Bus<Vec<u8>, Vec<u8>>,
     p1: Bus1,
     /// Attempts after the first before a transfer fails.
@@ -90,7 +91,19 @@ impl ServoBus {
             source,
         };
         let port = SerialPort::open(path, baud).map_err(open_err)?;
-        Self::from_port(port, &name).map_err(open_err)
+        let mut bus = Self::from_port(port, &name).map_err(open_err)?;
+        bus.baud = baud;
+        Ok(bus)
+    }
+
+    /// The port's name.
+    pub fn name(&self) -> &str {
+        &self.name
+    }
+
+    /// The baud rate it was opened at (0 for a port opened elsewhere).
+    pub fn baud(&self) -> u32 {
+        self.baud
     }
 
     /// A bus over an opened port (a virtual bus's client end, for instance).
@@ -99,6 +112,7 @@ impl ServoBus {
         let p2 = dynamixel2::Bus::new(port).map_err(|e| std::io::Error::other(e.to_string()))?;
         Ok(Self {
             name: name.to_string(),
+            baud: 0,
             p2,
             p1,
             retries: 2,

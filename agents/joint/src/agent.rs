@@ -14,8 +14,9 @@ use rig_protocol::{
 use rig_runtime::{NetOverrides, now_ns, open, publisher, zenoh, zenoh_err as z};
 use thiserror::Error;
 
-use crate::backend::{BackendError, SimBackend, joint_index};
+use crate::backend::{Applied, BackendError, Board, SimBackend, joint_index};
 use crate::guard::{GuardLimits, JointGuard, Verdict};
+use crate::hardware::{DynamixelBoard, PortOverrides};
 
 /// Errors that stop the agent (bad input never does: it is reported and dropped).
 #[derive(Debug, Error)]
@@ -52,6 +53,18 @@ pub struct AgentOptions {
     pub duration: Option<Duration>,
     /// Undeclared effects of the simulated joints (none by default).
     pub effects: rig_sim::effects::Effects,
+    /// Where readings come from.
+    pub backend: BackendKind,
+}
+
+/// The backend an agent runs.
+#[derive(Debug, Clone, Default)]
+pub enum BackendKind {
+    /// The simulated joints (default).
+    #[default]
+    Sim,
+    /// Dynamixel servos and the encoder bridge, at the config's ports or these.
+    Dynamixel(PortOverrides),
 }
 
 /// What the agent did for one joint.
@@ -94,7 +107,8 @@ fn guard_limits(cfg: &RigConfig, j: usize) -> GuardLimits {
 struct Served {
     name: String,
     index: u16,
-    backend: SimBackend,
+    /// This joint's place on the board.
+    k: usize,
     guard: JointGuard,
     limits: GuardLimits,
     sample_pub: zenoh::pubsub::Publisher<'static>,
@@ -128,43 +142,75 @@ impl Served {
     }
 
     /// Applies the commands that arrived since the last tick, then the watchdog.
-    async fn commands(&mut self, session: &zenoh::Session, now: u64) -> Result<(), AgentError> {
+    async fn commands(
+        &mut self,
+        session: &zenoh::Session,
+        board: &mut Board,
+        now: u64,
+    ) -> Result<(), AgentError> {
         while let Ok(Some(s)) = self.commands.try_recv() {
             let bytes = s.payload().to_bytes();
-            match decode::<JointCommand>(&bytes) {
+            let verdict = match decode::<JointCommand>(&bytes) {
                 Err(e) => {
                     self.report.malformed += 1;
                     eprintln!("rig-joint {}: dropped a malformed command: {e}", self.name);
+                    continue;
                 }
-                Ok(cmd) => match self.guard.on_command(&cmd, now, self.backend.actuator()) {
-                    Verdict::Accepted { actuator_goal, .. } => {
-                        self.report.commands_accepted += 1;
-                        if let Some(g) = actuator_goal {
-                            self.backend.set_actuator_goal(g);
+                // Within the travel (the guard names a goal outside it) yet beyond what the
+                // servo reaches: a config whose pivot mapping does not cover the travel.
+                Ok(cmd) => match cmd.pivot_goal_m {
+                    Some(g)
+                        if (self.limits.actuator_min..=self.limits.actuator_max).contains(&g)
+                            && !board.reachable(self.k, g) =>
+                    {
+                        Verdict::Rejected(format!(
+                            "pivot goal {:.3} mm is beyond the pivot servo's range",
+                            g * 1e3
+                        ))
+                    }
+                    _ => self.guard.on_command(&cmd, now, board.actuator(self.k)),
+                },
+            };
+            match verdict {
+                Verdict::Accepted {
+                    actuator_goal,
+                    motor_goal,
+                    torque_enable,
+                } => {
+                    if let Some(g) = actuator_goal {
+                        board.set_actuator_goal(self.k, g);
+                    }
+                    match board.apply(self.k, motor_goal, torque_enable)? {
+                        Applied::Done => self.report.commands_accepted += 1,
+                        Applied::Refused(why) => {
+                            self.report.commands_rejected += 1;
+                            self.status(session, JointState::Rejected, why).await?;
                         }
                     }
-                    Verdict::Rejected(why) => {
-                        self.report.commands_rejected += 1;
-                        self.status(session, JointState::Rejected, why).await?;
-                    }
-                },
+                }
+                Verdict::Rejected(why) => {
+                    self.report.commands_rejected += 1;
+                    self.status(session, JointState::Rejected, why).await?;
+                }
             }
         }
-        if let Some(state) = self.guard.on_tick(now, self.backend.actuator()) {
-            self.backend.set_actuator_goal(self.guard.goal());
+        if let Some(state) = self.guard.on_tick(now, board.actuator(self.k)) {
+            board.on_watchdog(self.k, self.guard.goal())?;
+            let what = match board {
+                Board::Sim(_) => format!("holding the {} where it is", self.limits.actuator_name),
+                Board::Dynamixel(_) => "torque off".to_string(),
+            };
             let text = format!(
-                "no command for {:.0} ms: holding the {} where it is",
+                "no command for {:.0} ms: {what}",
                 self.limits.watchdog_s * 1e3,
-                self.limits.actuator_name
             );
             self.status(session, state, text).await?;
         }
         Ok(())
     }
 
-    /// Reads the joint at grid time `t_acq` and publishes the sample (and the simulated truth).
-    async fn sample(&mut self, t_acq: u64, t_world: f64, dt: f64) -> Result<(), AgentError> {
-        let r = self.backend.read(t_world, dt)?;
+    /// Publishes joint's reading taken at grid time `t_acq` (and the simulated truth).
+    async fn publish(&mut self, t_acq: u64, r: &crate::backend::Reading) -> Result<(), AgentError> {
         self.report.samples += 1;
         let sample = JointSample {
             joint: self.index,
@@ -199,6 +245,52 @@ impl Served {
     }
 }
 
+/// Opens the board's backend for joints `js` (indices into the config).
+fn open_board(opts: &AgentOptions, js: &[usize]) -> Result<Board, BackendError> {
+    match &opts.backend {
+        BackendKind::Sim => js
+            .iter()
+            .map(|&j| SimBackend::new(&opts.cfg, j, opts.seed.wrapping_add(j as u64), opts.effects))
+            .collect::<Result<Vec<_>, _>>()
+            .map(Board::Sim),
+        BackendKind::Dynamixel(ports) => {
+            // Serial I/O blocks: off the async workers' backs.
+            tokio::task::block_in_place(|| DynamixelBoard::open(&opts.cfg, js, ports))
+                .map(|b| Board::Dynamixel(Box::new(b)))
+                .map_err(BackendError::from)
+        }
+    }
+}
+
+/// A fault: every joint reports it, the board goes to its safe state (torque off), and the
+/// error ends the agent.
+async fn fault(
+    session: &zenoh::Session,
+    served: &mut [Served],
+    board: Option<&mut Board>,
+    e: AgentError,
+) -> AgentError {
+    let mut text = format!("fault: {e}");
+    if let Some(b) = board {
+        let failed = tokio::task::block_in_place(|| b.safe_state());
+        text.push_str(if failed.is_empty() {
+            "; torque off"
+        } else {
+            "; torque off failed on some servos"
+        });
+        for f in failed {
+            eprintln!("rig-joint: torque off: {f}");
+        }
+    }
+    for joint in served.iter_mut() {
+        let _ = joint.status(session, JointState::Fault, text.clone()).await;
+    }
+    // Closing drops what is still queued: give the statuses time to leave.
+    tokio::time::sleep(Duration::from_millis(50)).await;
+    let _ = session.close().await;
+    e
+}
+
 /// Runs the agent until `shutdown` resolves or the duration ends; one report per joint, in
 /// the order of `opts.joints`.
 pub async fn run(
@@ -217,18 +309,21 @@ pub async fn run(
         )
         .into());
     }
+    let js = opts
+        .joints
+        .iter()
+        .map(|n| joint_index(cfg, n))
+        .collect::<Result<Vec<_>, _>>()?;
     let keys = Keys::new(&cfg.name)?;
     let session = open(&cfg.zenoh, &opts.net).await?;
     let mut served = Vec::new();
-    for name in &opts.joints {
-        let j = joint_index(cfg, name)?;
-        let backend = SimBackend::new(cfg, j, opts.seed.wrapping_add(j as u64), opts.effects)?;
+    for (k, (name, &j)) in opts.joints.iter().zip(&js).enumerate() {
         let limits = guard_limits(cfg, j);
-        let mut joint = Served {
+        served.push(Served {
             name: name.clone(),
             index: j as u16,
-            guard: JointGuard::new(j as u16, limits, backend.actuator()),
-            backend,
+            k,
+            guard: JointGuard::new(j as u16, limits, f64::NAN),
             limits,
             sample_pub: publisher(&session, keys.joint_sample(name)?).await?,
             truth_pub: publisher(&session, keys.sim_truth(name)?).await?,
@@ -244,25 +339,61 @@ pub async fn run(
                 .declare_token(keys.alive("joint", name)?)
                 .await
                 .map_err(z)?,
-        };
-        joint
-            .status(
-                &session,
-                JointState::Ok,
-                format!("joint {name} up (sim backend)"),
-            )
-            .await?;
-        served.push(joint);
+        });
+    }
+    // The hardware is opened once every joint can report what went wrong.
+    let mut board = match open_board(&opts, &js) {
+        Ok(b) => b,
+        Err(e) => return Err(fault(&session, &mut served, None, e.into()).await),
+    };
+    for joint in &mut served {
+        joint.guard = JointGuard::new(joint.index, joint.limits, board.actuator(joint.k));
+        let text = format!("joint {} up ({} backend)", joint.name, board.name());
+        joint.status(&session, JointState::Ok, text).await?;
     }
 
+    let result = sample_loop(&opts, &session, &mut served, &mut board, shutdown).await;
+    if let Err(e) = result {
+        return Err(fault(&session, &mut served, Some(&mut board), e).await);
+    }
+    let failed = tokio::task::block_in_place(|| board.safe_state());
+    let mut reports = Vec::new();
+    for mut joint in served {
+        let text = match (&board, failed.is_empty()) {
+            (Board::Sim(_), _) => format!("joint {} stopped", joint.name),
+            (Board::Dynamixel(_), true) => format!("joint {} stopped; torque off", joint.name),
+            (Board::Dynamixel(_), false) => format!(
+                "joint {} stopped; torque off failed: {}",
+                joint.name,
+                failed.join("; ")
+            ),
+        };
+        joint.status(&session, JointState::Stopped, text).await?;
+        reports.push(joint.report);
+    }
+    // Closing drops what is still queued: give the last statuses time to leave.
+    tokio::time::sleep(Duration::from_millis(50)).await;
+    session.close().await.map_err(z)?;
+    Ok(reports)
+}
+
+/// Samples on the tick grid until `shutdown` or the duration's end.
+async fn sample_loop(
+    opts: &AgentOptions,
+    session: &zenoh::Session,
+    served: &mut [Served],
+    board: &mut Board,
+    shutdown: impl std::future::Future<Output = ()>,
+) -> Result<(), AgentError> {
     // Let gossip link this peer to the rig's other peers (estimator, recorders, viewers)
     // before the first sample: in peer-to-peer mode a sample reaches only peers already linked.
     tokio::time::sleep(SETTLE).await;
-    let period_ns = (1e9 / cfg.rate_hz).round() as u64;
+    let period_ns = (1e9 / opts.cfg.rate_hz).round() as u64;
     let mut ticker = tokio::time::interval(Duration::from_nanos(period_ns));
     ticker.set_missed_tick_behavior(tokio::time::MissedTickBehavior::Skip);
     let deadline = opts.duration.map(|d| tokio::time::Instant::now() + d);
     let mut last_tick: Option<u64> = None;
+    let hardware = !board.reads_the_past();
     tokio::pin!(shutdown);
     loop {
         tokio::select! {
@@ -276,35 +407,33 @@ pub async fn run(
         let tick = now / period_ns;
         // Every grid tick since the last wake-up is sampled (the timer wakes at ~1 ms
         // granularity); more than MAX_CATCH_UP behind, the older ticks are skipped and counted.
+        // Hardware reads only the present: the latest tick, the others counted as skipped.
         let first = match last_tick {
             Some(l) if tick <= l => continue,
+            Some(_) if hardware => tick,
             Some(l) => (l + 1).max(tick.saturating_sub(MAX_CATCH_UP)),
             None => tick,
         };
         let skipped = last_tick.map_or(0, |l| first.saturating_sub(l + 1));
         // Commands first: they apply from this tick on.
-        for joint in &mut served {
+        for joint in served.iter_mut() {
             joint.report.skipped_ticks += skipped;
-            joint.commands(&session, now).await?;
+            joint.commands(session, board, now).await?;
         }
         for t in first..=tick {
             let dt = last_tick.map_or(1, |l| t.saturating_sub(l)) as f64 * period_ns as f64 * 1e-9;
             last_tick = Some(t);
             let t_acq = t * period_ns;
             let t_world = t_acq.saturating_sub(opts.start_ns) as f64 * 1e-9;
-            for joint in &mut served {
-                joint.sample(t_acq, t_world, dt).await?;
+            let readings = if hardware {
+                tokio::task::block_in_place(|| board.read(t_world, dt))?
+            } else {
+                board.read(t_world, dt)?
+            };
+            for (joint, r) in served.iter_mut().zip(&readings) {
+                joint.publish(t_acq, r).await?;
             }
         }
     }
-    let mut reports = Vec::new();
-    for mut joint in served {
-        let text = format!("joint {} stopped", joint.name);
-        joint.status(&session, JointState::Stopped, text).await?;
-        reports.push(joint.report);
-    }
-    // Closing drops what is still queued: give the last statuses time to leave.
-    tokio::time::sleep(Duration::from_millis(50)).await;
-    session.close().await.map_err(z)?;
-    Ok(reports)
+    Ok(())
 }

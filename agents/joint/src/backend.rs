@@ -1,4 +1,6 @@
-//! Where a joint's readings come from. `sim` now; `dynamixel` arrives with the hardware issue.
+//! Where a board's readings come from: `sim` (this module's [`SimBackend`], one per joint) or
+//! `dynamixel` ([`crate::hardware::DynamixelBoard`], the whole board's buses at once), behind
+//! one [`Board`].
 //!
 //! The sim backend evaluates the simulated world at each acquisition time: for a robot, the
 //! shared [`StrokeWorld`] gives this joint's link angle and deflection and the joint's own
@@ -21,6 +23,8 @@ pub enum BackendError {
     UnknownJoint(String, String),
     #[error("simulated world: {0}")]
     World(String),
+    #[error(transparent)]
+    Hardware(#[from] crate::hardware::HardwareError),
 }
 
 /// What the simulator knows and a real joint cannot: the true deflection [rad], torque
@@ -264,6 +268,121 @@ impl SimBackend {
                     }),
                 })
             }
+        }
+    }
+}
+
+/// The backend of a board serving one or more joints (indices into the board's own list).
+#[derive(Debug)]
+pub enum Board {
+    /// One simulated joint each.
+    Sim(Vec<SimBackend>),
+    /// The real (or virtual) servos and encoders.
+    Dynamixel(Box<crate::hardware::DynamixelBoard>),
+}
+
+/// What a board did with a command's motor goal and torque switch.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub enum Applied {
+    Done,
+    /// The hardware cannot do it; the text says why (the joint goes on as before).
+    Refused(String),
+}
+
+impl Board {
+    /// The backend's name, for statuses.
+    pub fn name(&self) -> &'static str {
+        match self {
+            Board::Sim(_) => "sim",
+            Board::Dynamixel(_) => "dynamixel",
+        }
+    }
+
+    /// Whether ticks missed by a late wake-up can still be read (a simulation can evaluate
+    /// the past; hardware reads only now).
+    pub fn reads_the_past(&self) -> bool {
+        matches!(self, Board::Sim(_))
+    }
+
+    /// Every joint's reading at rig time `t` [s], `dt` after the previous reading.
+    pub fn read(&mut self, t: f64, dt: f64) -> Result<Vec<Reading>, BackendError> {
+        match self {
+            Board::Sim(v) => v.iter_mut().map(|b| b.read(t, dt)).collect(),
+            Board::Dynamixel(b) => Ok(b.read(dt)?),
+        }
+    }
+
+    /// Joint `k`'s stiffness actuator position (pivot [m], AWAS stiffness motor [rad]).
+    pub fn actuator(&self, k: usize) -> f64 {
+        match self {
+            Board::Sim(v) => v.get(k).map_or(f64::NAN, SimBackend::actuator),
+            Board::Dynamixel(b) => b.actuator(k),
+        }
+    }
+
+    /// Joint `k`'s stiffness actuator goal (checked by the guard).
+    pub fn set_actuator_goal(&mut self, k: usize, goal: f64) {
+        match self {
+            Board::Sim(v) => {
+                if let Some(b) = v.get_mut(k) {
+                    b.set_actuator_goal(goal);
+                }
+            }
+            Board::Dynamixel(b) => b.set_actuator_goal(k, goal),
+        }
+    }
+
+    /// Whether joint `k`'s actuator can reach `goal` (the servo's range; the guard checks
+    /// the mechanism's).
+    pub fn reachable(&self, k: usize, goal: f64) -> bool {
+        match self {
+            Board::Sim(_) => true,
+            Board::Dynamixel(b) => b.pivot_reachable(k, goal),
+        }
+    }
+
+    /// Applies an accepted command's motor goal and torque switch to joint `k`. The
+    /// simulated world holds its motors where the world puts them: nothing to do.
+    pub fn apply(
+        &mut self,
+        k: usize,
+        motor_goal_rad: Option<f64>,
+        torque_enable: bool,
+    ) -> Result<Applied, BackendError> {
+        let Board::Dynamixel(b) = self else {
+            return Ok(Applied::Done);
+        };
+        if let Some(m) = motor_goal_rad {
+            match b.set_motor_goal(k, m) {
+                Err(crate::hardware::HardwareError::Bus(
+                    e @ rig_dynamixel::servos::BusError::OutOfRange { .. },
+                )) => return Ok(Applied::Refused(format!("motor goal refused: {e}"))),
+                r => r?,
+            }
+        }
+        b.torque(k, torque_enable)?;
+        Ok(Applied::Done)
+    }
+
+    /// The watchdog fired on joint `k`: the simulation holds the actuator where it is
+    /// (`hold_at`), the hardware turns the joint's torque off.
+    pub fn on_watchdog(&mut self, k: usize, hold_at: f64) -> Result<(), BackendError> {
+        match self {
+            Board::Sim(v) => {
+                if let Some(b) = v.get_mut(k) {
+                    b.set_actuator_goal(hold_at);
+                }
+                Ok(())
+            }
+            Board::Dynamixel(b) => Ok(b.torque(k, false)?),
+        }
+    }
+
+    /// Torque off everywhere (hardware); the failures, each naming its servo.
+    pub fn safe_state(&mut self) -> Vec<String> {
+        match self {
+            Board::Sim(_) => Vec::new(),
+            Board::Dynamixel(b) => b.safe_state(),
         }
     }
 }

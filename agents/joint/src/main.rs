@@ -4,12 +4,27 @@ use std::path::PathBuf;
 use std::process::ExitCode;
 use std::time::Duration;
 
-use clap::Parser;
-use rig_joint::agent::{AgentOptions, run};
+use clap::{Parser, ValueEnum};
+use rig_joint::agent::{AgentOptions, BackendKind, run};
+use rig_joint::hardware::PortOverrides;
 use rig_runtime::{NetOverrides, now_ns};
+
+/// Where readings come from.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
+enum Backend {
+    /// The simulated joints
+    Sim,
+    /// Dynamixel servos on the config's bus and the deflection encoders on its serial bridge
+    Dynamixel,
+}
 
 /// The joint-board agent of the VSA rig: publishes one joint's samples over Zenoh and accepts
 /// commands only within the joint's limits.
+///
+/// With `--backend dynamixel` it checks each servo's model, holds every servo where it is and
+/// turns torque on; torque goes off on exit (Ctrl-C, SIGTERM, --duration), on the watchdog and
+/// on a bus fault (which also ends the agent with a `fault` status naming the servo and bus).
+/// Without hardware: `rig virtual-board --config F` prints a bus and a bridge to pass here.
 #[derive(Debug, Parser)]
 #[command(name = "rig-joint", version)]
 struct Args {
@@ -20,9 +35,15 @@ struct Args {
     /// them all from one agent: repeat the flag or list them, e.g. --joint j1,j2
     #[arg(long, required = true, value_delimiter = ',', value_name = "NAME")]
     joint: Vec<String>,
-    /// Where readings come from: sim (dynamixel arrives with the hardware issue)
-    #[arg(long, default_value = "sim")]
-    backend: String,
+    /// Where readings come from
+    #[arg(long, value_enum, default_value_t = Backend::Sim)]
+    backend: Backend,
+    /// Servo bus port instead of the config's `servo.bus` (dynamixel backend), e.g. /dev/ttyUSB0
+    #[arg(long, value_name = "PATH")]
+    bus: Option<PathBuf>,
+    /// Encoder bridge port instead of the config's `encoder.device` (dynamixel backend)
+    #[arg(long, value_name = "PATH")]
+    bridge: Option<PathBuf>,
     /// Zenoh endpoints to listen on (overrides the config), e.g. tcp/127.0.0.1:7447
     #[arg(long, value_name = "ENDPOINT")]
     listen: Vec<String>,
@@ -46,10 +67,9 @@ struct Args {
 
 fn main() -> ExitCode {
     let a = Args::parse();
-    if a.backend != "sim" {
+    if a.backend == Backend::Sim && (a.bus.is_some() || a.bridge.is_some()) {
         eprintln!(
-            "error: backend {:?} is not available yet; use --backend sim",
-            a.backend
+            "error: --bus and --bridge are ports of the dynamixel backend; add --backend dynamixel"
         );
         return ExitCode::from(2);
     }
@@ -72,7 +92,15 @@ fn main() -> ExitCode {
             return ExitCode::from(1);
         }
     };
+    let backend = match a.backend {
+        Backend::Sim => BackendKind::Sim,
+        Backend::Dynamixel => BackendKind::Dynamixel(PortOverrides {
+            bus: a.bus.clone(),
+            bridge: a.bridge.clone(),
+        }),
+    };
     let opts = AgentOptions {
+        backend,
         effects,
         cfg,
         joints: a.joint.clone(),
@@ -98,8 +126,19 @@ fn main() -> ExitCode {
             return ExitCode::from(1);
         }
     };
+    // Ctrl-C or SIGTERM (systemd, kill) end the agent cleanly: torque off, statuses sent.
     let result = rt.block_on(run(opts, async {
-        let _ = tokio::signal::ctrl_c().await;
+        match tokio::signal::unix::signal(tokio::signal::unix::SignalKind::terminate()) {
+            Ok(mut term) => {
+                tokio::select! {
+                    _ = tokio::signal::ctrl_c() => {}
+                    _ = term.recv() => {}
+                }
+            }
+            Err(_) => {
+                let _ = tokio::signal::ctrl_c().await;
+            }
+        }
     }));
     match result {
         Ok(reports) => {

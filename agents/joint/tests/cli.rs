@@ -35,16 +35,43 @@ fn bad_config_unknown_joint_and_missing_backend_are_clear_errors() {
         err.contains("j9") && err.contains("j1, j2, j3, j4"),
         "{err}"
     );
-    let (code, err) = run(&[
+    // The hardware is not there: the port is named, the agent ends with status 1.
+    let dynamixel = [
         "--config",
         &example(),
         "--joint",
         "j1",
         "--backend",
         "dynamixel",
+    ];
+    let (code, err) = run(&dynamixel);
+    assert_eq!(code, Some(1));
+    assert!(
+        err.contains("/dev/ttyUSB0: cannot open at 1000000 baud"),
+        "{err}"
+    );
+    // Paper A's AWAS joint has no Dynamixel board.
+    let awas = example().replace("parallel.toml", "awas.toml");
+    let (code, err) = run(&[
+        "--config",
+        &awas,
+        "--joint",
+        "awas",
+        "--backend",
+        "dynamixel",
     ]);
+    assert_eq!(code, Some(1));
+    assert!(
+        err.contains("the dynamixel backend drives lever VSAs"),
+        "{err}"
+    );
+    // Ports belong to the dynamixel backend; unknown backends are refused by name.
+    let (code, err) = run(&["--config", &example(), "--joint", "j1", "--bus", "/dev/x"]);
     assert_eq!(code, Some(2));
-    assert!(err.contains("--backend sim"), "{err}");
+    assert!(err.contains("--backend dynamixel"), "{err}");
+    let (code, err) = run(&["--config", &example(), "--joint", "j1", "--backend", "can"]);
+    assert_eq!(code, Some(2));
+    assert!(err.contains("[possible values: sim, dynamixel]"), "{err}");
 }
 
 #[test]

@@ -10,6 +10,7 @@
 //! - `rig bench throughput --joints N`: one joint board serving N simulated joints at the
 //!   rate (a bench topology: independent lever joints) against one estimator host; samples
 //!   per second received, samples lost, ticks the board could not keep up with.
+//! - `rig bench bus`: the `dynamixel` backend's read cycle ([`crate::board`]).
 
 use std::sync::Arc;
 use std::sync::atomic::{AtomicU64, Ordering};
@@ -40,6 +41,9 @@ enum What {
     Latency(LatencyArgs),
     /// N simulated joints at the rate on one board against one estimator host.
     Throughput(ThroughputArgs),
+    /// The dynamixel backend's read cycle (servos and encoders of every joint) against the
+    /// wire's theoretical limit; on a virtual board unless --bus/--bridge name hardware.
+    Bus(crate::board::BusArgs),
 }
 
 #[derive(Debug, clap::Args)]
@@ -89,6 +93,7 @@ pub fn run(args: &Args) -> Result<(), CliError> {
     match &args.what {
         What::Latency(a) => latency(a),
         What::Throughput(a) => throughput(a),
+        What::Bus(a) => crate::board::bench_bus(a),
     }
 }
 
@@ -317,6 +322,7 @@ fn run_rig(
                     seed: 1,
                     duration: Some(duration),
                     effects: Default::default(),
+                    backend: Default::default(),
                 },
                 std::future::pending::<()>(),
             )));

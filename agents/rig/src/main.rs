@@ -23,6 +23,7 @@
 
 mod allocate;
 mod bench;
+mod board;
 mod error;
 mod hosts;
 mod identify;
@@ -90,6 +91,9 @@ enum Command {
     Identify(identify::Args),
     /// List the Dynamixel servos on a serial bus: ID, model number, model.
     Scan(scan::Args),
+    /// Stand in for a joint board's hardware: virtual servos and encoder bridge on
+    /// pseudo-terminals, driven by the simulated plant, for `rig-joint --backend dynamixel`.
+    VirtualBoard(board::VirtualArgs),
     /// Show a running rig live in Rerun: hysteresis loops, stiffness, end-effector force,
     /// allocations (spawns the viewer when `rerun` is on PATH, else saves an .rrd).
     Viz(viz::Args),
@@ -112,6 +116,7 @@ fn main() -> ExitCode {
         Command::Reproduce(a) => reproduce::run(&a),
         Command::Identify(a) => identify::run(&a),
         Command::Scan(a) => scan::run(&a),
+        Command::VirtualBoard(a) => board::virtual_board(&a),
         Command::Bench(a) => bench::run(&a),
         Command::Viz(a) => viz::run(&a),
     };

@@ -240,6 +240,7 @@ async fn up(cfg: RigConfig, args: &Args) -> Result<(), CliError> {
             seed: args.seed,
             duration: None,
             effects,
+            backend: Default::default(),
         };
         joints.push((
             j.name.clone(),

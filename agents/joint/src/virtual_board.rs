@@ -1,0 +1,212 @@
+//! A joint board without hardware: virtual servos and a virtual encoder bridge on
+//! pseudo-terminals, whose readings come from the simulated plant. The `dynamixel` backend
+//! talks to it exactly as to paper B's U2D2 and Arduino, so the whole hardware path (sync
+//! reads, protocol 1.0, goal writes, the bridge's frames, faults) runs in tests and on a laptop
+//! (`rig virtual-board`).
+//!
+//! A thread steps the simulated joints ([`SimBackend`], the same plant the `sim` backend
+//! uses, at the same world time) every `STEP` and writes what real hardware would show: main
+//! servo present positions (the world's motor angles + `main_zero_deg`), encoder counts
+//! (the deflection from `zero_counts`), pivot servo present positions (the plant's pivot,
+//! which follows the pivot servo's goal at the joint's rate limit while its torque is on).
+
+use std::path::PathBuf;
+use std::sync::Arc;
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::thread::JoinHandle;
+use std::time::Duration;
+
+use rig_config::{JointKind, RigConfig};
+use rig_dynamixel::encoder::{COUNTS, Reading as Counts, VirtualEncoders};
+use rig_dynamixel::models::Model;
+use rig_dynamixel::servos::Servo;
+use rig_dynamixel::virtual_bus::{VirtualBus, VirtualServo};
+use rig_runtime::now_ns;
+
+use crate::backend::{BackendError, SimBackend};
+use crate::hardware::HardwareError;
+
+/// How often the plant thread updates the virtual hardware.
+const STEP: Duration = Duration::from_micros(250);
+
+/// One simulated joint behind its virtual hardware.
+struct Joint {
+    sim: SimBackend,
+    main: Servo,
+    pivot: Servo,
+    channel: usize,
+    zero_counts: u32,
+    resolution: f64,
+    main_zero: f64,
+    pivot_zero: f64,
+    m_per_rad: f64,
+}
+
+/// The virtual board; dropping it stops the plant and the devices.
+#[derive(Debug)]
+pub struct VirtualBoard {
+    /// The servo bus's port (give it to `rig-joint --bus`).
+    pub bus_path: PathBuf,
+    /// The encoder bridge's port (`rig-joint --bridge`).
+    pub bridge_path: PathBuf,
+    /// The servos' control tables (fault injection, inspection).
+    pub bus: VirtualBus,
+    pub encoders: VirtualEncoders,
+    stop: Arc<AtomicBool>,
+    thread: Option<JoinHandle<()>>,
+}
+
+fn config_err(field: String, message: &str) -> BackendError {
+    HardwareError::Config {
+        field,
+        message: message.to_string(),
+    }
+    .into()
+}
+
+fn counts(model: &Model, rad: f64) -> u32 {
+    model
+        .to_counts(rad)
+        .unwrap_or(if rad < 0.0 { 0 } else { model.max_position })
+}
+
+impl VirtualBoard {
+    /// The board of joints `js` (indices into `cfg.joints`, lever joints with a servo
+    /// section), its world started at `start_ns` [ns since the UNIX epoch] as the `sim`
+    /// backend's, its sensors seeded as the sim backend's with `seed`.
+    pub fn start(
+        cfg: &RigConfig,
+        js: &[usize],
+        start_ns: u64,
+        seed: u64,
+    ) -> Result<Self, BackendError> {
+        let mut joints = Vec::new();
+        let mut servos = Vec::new();
+        let mut channels = 0;
+        for &j in js {
+            let c = &cfg.joints[j];
+            let at = |f: &str| format!("joint[{j}] ({}).{f}", c.name);
+            if !matches!(c.kind, JointKind::Lever { .. }) {
+                return Err(config_err(
+                    at("kind"),
+                    "the virtual board has lever joints only",
+                ));
+            }
+            let s = c.servo.as_ref().ok_or_else(|| {
+                config_err(
+                    at("servo"),
+                    "missing: the virtual board needs the servo IDs",
+                )
+            })?;
+            let m_per_rad = s
+                .pivot_m_per_rad
+                .ok_or_else(|| config_err(at("servo.pivot_mm_per_deg"), "missing"))?;
+            let main = Servo::new(s.main_id, &s.main_model).map_err(HardwareError::from)?;
+            let pivot =
+                Servo::new(s.stiffness_id, &s.stiffness_model).map_err(HardwareError::from)?;
+            let sim = SimBackend::new(cfg, j, seed.wrapping_add(j as u64), Default::default())?;
+            let mut vm = VirtualServo::new(*main.model, main.id);
+            vm.set(main.model.present_position, counts(main.model, 0.0));
+            let mut vp = VirtualServo::new(*pivot.model, pivot.id);
+            let pivot_counts = counts(pivot.model, s.pivot_zero_rad + sim.actuator() / m_per_rad);
+            vp.set(pivot.model.present_position, pivot_counts);
+            vp.set(pivot.model.goal_position, pivot_counts);
+            servos.extend([vm, vp]);
+            channels = channels.max(usize::from(c.encoder.channel) + 1);
+            joints.push(Joint {
+                sim,
+                main,
+                pivot,
+                channel: usize::from(c.encoder.channel),
+                zero_counts: c.encoder.zero_counts,
+                resolution: c.encoder.resolution_rad,
+                main_zero: s.main_zero_rad,
+                pivot_zero: s.pivot_zero_rad,
+                m_per_rad,
+            });
+        }
+        let io = |e: std::io::Error| BackendError::World(format!("virtual board: {e}"));
+        let (bus, bus_path) = VirtualBus::start_with_path(servos).map_err(io)?;
+        let (encoders, bridge_path) = VirtualEncoders::start_with_path(vec![
+            Counts {
+                counts: 0,
+                error: false,
+                magnet: false,
+            };
+            channels
+        ])
+        .map_err(io)?;
+        let stop = Arc::new(AtomicBool::new(false));
+        let thread = {
+            let (stop, servos, bridge) = (stop.clone(), bus.servos.clone(), encoders.state.clone());
+            std::thread::spawn(move || {
+                let mut last: Option<u64> = None;
+                while !stop.load(Ordering::Relaxed) {
+                    let now = now_ns();
+                    let t = now.saturating_sub(start_ns) as f64 * 1e-9;
+                    let dt = last.map_or(0.0, |l| now.saturating_sub(l) as f64 * 1e-9);
+                    last = Some(now);
+                    step(&mut joints, &servos, &bridge, t, dt);
+                    std::thread::sleep(STEP);
+                }
+            })
+        };
+        Ok(Self {
+            bus_path,
+            bridge_path,
+            bus,
+            encoders,
+            stop,
+            thread: Some(thread),
+        })
+    }
+}
+
+/// One plant step at world time `t`: the pivot servo's goal drives the plant's pivot (torque
+/// on), and the plant's state becomes the servos' and encoders' readings.
+fn step(
+    joints: &mut [Joint],
+    servos: &rig_dynamixel::virtual_bus::Servos,
+    bridge: &std::sync::Mutex<rig_dynamixel::encoder::VirtualState>,
+    t: f64,
+    dt: f64,
+) {
+    let mut table = servos.lock().unwrap_or_else(|p| p.into_inner());
+    let mut enc = bridge.lock().unwrap_or_else(|p| p.into_inner());
+    for j in joints.iter_mut() {
+        if let Some(p) = table.get(&j.pivot.id)
+            && p.get(p.model.torque_enable) == 1
+        {
+            let goal = p.model.to_rad(p.get(p.model.goal_position));
+            j.sim.set_actuator_goal((goal - j.pivot_zero) * j.m_per_rad);
+        }
+        let Ok(r) = j.sim.read(t, dt.max(1e-6)) else {
+            continue;
+        };
+        if let Some(m) = table.get_mut(&j.main.id) {
+            m.set(
+                m.model.present_position,
+                counts(j.main.model, r.motor_rad + j.main_zero),
+            );
+        }
+        if let (Some(p), Some(d)) = (table.get_mut(&j.pivot.id), r.pivot_m) {
+            p.set(
+                p.model.present_position,
+                counts(j.pivot.model, j.pivot_zero + d / j.m_per_rad),
+            );
+        }
+        if let Some(e) = enc.readings.get_mut(j.channel) {
+            let c = (r.deflection_rad / j.resolution).round() as i64 + i64::from(j.zero_counts);
+            e.counts = c.rem_euclid(i64::from(COUNTS)) as u16;
+        }
+    }
+}
+
+impl Drop for VirtualBoard {
+    fn drop(&mut self) {
+        self.stop.store(true, Ordering::Relaxed);
+        if let Some(t) = self.thread.take() {
+            let _ = t.join();
+        }
+    }
+}

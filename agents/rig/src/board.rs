@@ -1,0 +1,253 @@
+//! The hardware path from the command line: `rig virtual-board` (a joint board's servos and
+//! encoder bridge without hardware) and `rig bench bus` (how long one read cycle of the
+//! `dynamixel` backend takes, against what the wire allows).
+
+use std::path::PathBuf;
+use std::time::{Duration, Instant};
+
+use rig_config::RigConfig;
+use rig_dynamixel::timing::wire_s;
+use rig_joint::backend::joint_index;
+use rig_joint::hardware::{DynamixelBoard, PortOverrides};
+use rig_joint::virtual_board::VirtualBoard;
+use rig_runtime::now_ns;
+use serde_json::json;
+
+use crate::error::CliError;
+
+fn load(config: &Option<PathBuf>) -> Result<RigConfig, CliError> {
+    Ok(match config {
+        Some(p) => rig_config::load(p)?,
+        None => rig_config::examples::load("parallel")?,
+    })
+}
+
+fn joints(cfg: &RigConfig, names: &[String]) -> Result<Vec<usize>, CliError> {
+    if names.is_empty() {
+        return Ok((0..cfg.joints.len()).collect());
+    }
+    names
+        .iter()
+        .map(|n| joint_index(cfg, n).map_err(|e| CliError::Unsupported(e.to_string())))
+        .collect()
+}
+
+/// Stand in for a joint board's hardware: virtual servos with the config's IDs and models
+/// and a virtual encoder bridge, on pseudo-terminals, whose readings come from the simulated
+/// plant (the world of the `sim` backend). Prints the two ports, then serves them until
+/// Ctrl-C or --duration. Run the agent against them:
+///
+///   rig virtual-board --config rig-config/examples/parallel.toml
+///   rig-joint --config rig-config/examples/parallel.toml --joint j1,j2,j3,j4 \
+///       --backend dynamixel --bus /dev/pts/N --bridge /dev/pts/M
+#[derive(Debug, clap::Args)]
+pub struct VirtualArgs {
+    /// Rig config (default: the example parallel robot)
+    #[arg(long, value_name = "FILE")]
+    config: Option<PathBuf>,
+    /// Joints on the board (default: every joint of the config)
+    #[arg(long, value_delimiter = ',', value_name = "NAME")]
+    joint: Vec<String>,
+    /// Start of the simulated world [ns since the UNIX epoch]; default: now
+    #[arg(long)]
+    start_ns: Option<u64>,
+    /// Seed of the simulated plant
+    #[arg(long, default_value_t = 1)]
+    seed: u64,
+    /// Stop after this many seconds (default: until Ctrl-C)
+    #[arg(long, value_name = "SECONDS")]
+    duration: Option<f64>,
+    /// Print the ports as one JSON object {"bus", "bridge"}
+    #[arg(long)]
+    json: bool,
+}
+
+pub fn virtual_board(a: &VirtualArgs) -> Result<(), CliError> {
+    let cfg = load(&a.config)?;
+    let js = joints(&cfg, &a.joint)?;
+    let board = VirtualBoard::start(&cfg, &js, a.start_ns.unwrap_or_else(now_ns), a.seed)
+        .map_err(|e| CliError::Unsupported(e.to_string()))?;
+    if a.json {
+        println!(
+            "{}",
+            json!({"bus": board.bus_path, "bridge": board.bridge_path})
+        );
+    } else {
+        println!("bus {}", board.bus_path.display());
+        println!("bridge {}", board.bridge_path.display());
+        eprintln!("virtual board of {} joint(s) up; Ctrl-C to stop", js.len());
+    }
+    // Whoever reads our stdout (a script, a test) gets the ports now.
+    use std::io::Write;
+    std::io::stdout().flush()?;
+    let rt = tokio::runtime::Builder::new_current_thread()
+        .enable_all()
+        .build()?;
+    rt.block_on(async {
+        let until = async {
+            match a.duration.filter(|d| d.is_finite() && *d > 0.0) {
+                Some(d) => tokio::time::sleep(Duration::from_secs_f64(d)).await,
+                None => std::future::pending().await,
+            }
+        };
+        tokio::select! {
+            _ = tokio::signal::ctrl_c() => {}
+            _ = until => {}
+        }
+    });
+    drop(board);
+    Ok(())
+}
+
+/// Time the `dynamixel` backend's read cycle (servo positions and encoders of every joint
+/// served) and set it against the wire's theoretical limit at the config's baud rates.
+///
+/// Without --bus/--bridge the board is virtual (`rig virtual-board`): the figure is then the
+/// cost of our software and the kernel's pseudo-terminals, with no wire in between; on the
+/// rig, give the ports and the figure includes the wire, the servos' Return Delay Time and
+/// the USB adapter's latency timer (docs/HARDWARE.md).
+#[derive(Debug, clap::Args)]
+pub struct BusArgs {
+    /// Rig config (default: the example parallel robot: 4 joints on one bus and one bridge)
+    #[arg(long, value_name = "FILE")]
+    config: Option<PathBuf>,
+    /// Joints on the board (default: every joint of the config)
+    #[arg(long, value_delimiter = ',', value_name = "NAME")]
+    joint: Vec<String>,
+    /// Servo bus port of real hardware (default: a virtual board)
+    #[arg(long, value_name = "PATH")]
+    bus: Option<PathBuf>,
+    /// Encoder bridge port of real hardware
+    #[arg(long, value_name = "PATH")]
+    bridge: Option<PathBuf>,
+    /// Read cycles timed (after 100 warm-up cycles)
+    #[arg(long, default_value_t = 5000)]
+    cycles: usize,
+    /// Print one JSON object instead of the table
+    #[arg(long)]
+    json: bool,
+}
+
+pub fn bench_bus(a: &BusArgs) -> Result<(), CliError> {
+    let cfg = load(&a.config)?;
+    let js = joints(&cfg, &a.joint)?;
+    let fail = |e: rig_joint::hardware::HardwareError| CliError::Unsupported(e.to_string());
+    let (virt, ports) = match (&a.bus, &a.bridge) {
+        (None, None) => {
+            let v = VirtualBoard::start(&cfg, &js, now_ns(), 1)
+                .map_err(|e| CliError::Unsupported(e.to_string()))?;
+            let ports = PortOverrides {
+                bus: Some(v.bus_path.clone()),
+                bridge: Some(v.bridge_path.clone()),
+            };
+            (Some(v), ports)
+        }
+        (bus, bridge) => (
+            None,
+            PortOverrides {
+                bus: bus.clone(),
+                bridge: bridge.clone(),
+            },
+        ),
+    };
+    let mut board = DynamixelBoard::open(&cfg, &js, &ports).map_err(fail)?;
+    let period = 1.0 / cfg.rate_hz;
+    for _ in 0..100 {
+        board.read(period).map_err(fail)?;
+    }
+    let pb = crate::progress::bar(a.cycles as u64, "bus cycles");
+    let mut us = Vec::with_capacity(a.cycles);
+    let t0 = Instant::now();
+    for _ in 0..a.cycles {
+        let t = Instant::now();
+        board.read(period).map_err(fail)?;
+        us.push(t.elapsed().as_secs_f64() * 1e6);
+        pb.inc(1);
+    }
+    let total = t0.elapsed().as_secs_f64();
+    pb.finish_and_clear();
+    let stats = board.bus_stats();
+    let loads = board.wire_per_cycle();
+    let failed = board.safe_state();
+    drop(board);
+    let kind = if virt.is_some() {
+        "virtual"
+    } else {
+        "hardware"
+    };
+    drop(virt);
+    if !failed.is_empty() {
+        return Err(CliError::Unsupported(format!(
+            "torque off failed: {}",
+            failed.join("; ")
+        )));
+    }
+    us.sort_by(f64::total_cmp);
+    let at = |q: f64| us[((us.len().max(1) - 1) as f64 * q).round() as usize];
+    // The wire: each line's bytes at its configured baud (the virtual lines have no baud of
+    // their own).
+    let wire: Vec<_> = loads
+        .iter()
+        .map(|l| {
+            json!({
+                "line": l.line,
+                "baud": l.baud,
+                "bytes": l.bytes,
+                "replies": l.replies,
+                "transactions": l.transactions,
+                "wire_us": wire_s(l.bytes, l.baud) * 1e6,
+            })
+        })
+        .collect();
+    // The lines are read one after the other.
+    let wire_us: f64 = loads.iter().map(|l| wire_s(l.bytes, l.baud) * 1e6).sum();
+    let transactions: usize = loads.iter().map(|l| l.transactions).sum();
+    let out = json!({
+        "board": kind,
+        "joints": js.len(),
+        "cycles": us.len(),
+        "cycle_us": {"mean": total / us.len().max(1) as f64 * 1e6, "p50": at(0.5), "p99": at(0.99), "max": at(1.0)},
+        "bus": {"transfers": stats.transfers, "retries": stats.retries, "failures": stats.failures},
+        "wire": wire,
+        "wire_us": wire_us,
+        "wire_limit_hz": 1e6 / wire_us,
+        "transactions_per_cycle": transactions,
+        "rate_hz": cfg.rate_hz,
+    });
+    if a.json {
+        println!("{out}");
+        return Ok(());
+    }
+    println!(
+        "{} board, {} joints, {} cycles: mean {:.0} µs, p50 {:.0} µs, p99 {:.0} µs, max {:.0} µs",
+        kind,
+        js.len(),
+        us.len(),
+        total / us.len().max(1) as f64 * 1e6,
+        at(0.5),
+        at(0.99),
+        at(1.0)
+    );
+    println!(
+        "bus: {} transfers, {} retries, {} failures",
+        stats.transfers, stats.retries, stats.failures
+    );
+    for l in &loads {
+        println!(
+            "wire {}: {} bytes at {} baud = {:.0} µs, {} replies, {} round trips",
+            l.line,
+            l.bytes,
+            l.baud,
+            wire_s(l.bytes, l.baud) * 1e6,
+            l.replies,
+            l.transactions
+        );
+    }
+    println!(
+        "theoretical limit: {:.0} µs a cycle on the wire = {:.0} Hz (rate_hz {}); add each reply's Return Delay Time and each round trip's USB latency",
+        wire_us,
+        1e6 / wire_us,
+        cfg.rate_hz
+    );
+    Ok(())
+}
