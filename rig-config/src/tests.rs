@@ -236,3 +236,31 @@ fn missing_file_is_a_clear_error() {
     let e = load(Path::new("/nonexistent/rig.toml")).unwrap_err();
     assert!(e.to_string().contains("cannot read the file"));
 }
+
+#[test]
+fn hardware_fields_are_read_in_lab_units_and_checked() {
+    let cfg = crate::examples::load("parallel").unwrap();
+    let s = cfg.joints[0].servo.as_ref().unwrap();
+    // 0.0873 mm per degree: a 5 mm pinion, 5.0020e-3 m per radian.
+    let m_per_rad = s.pivot_m_per_rad.unwrap();
+    assert!((m_per_rad - 0.0873e-3 * 180.0 / std::f64::consts::PI).abs() < 1e-12);
+    assert!((s.pivot_zero_rad + 100f64.to_radians()).abs() < 1e-12);
+    let e = &cfg.joints[3].encoder;
+    assert_eq!((e.channel, e.zero_counts, e.baud), (3, 8192, 1_000_000));
+    assert_eq!(e.device.as_deref(), Some("/dev/ttyACM0"));
+    let e = errors_after(
+        "parallel.toml",
+        "pivot_mm_per_deg = 0.0873",
+        "pivot_mm_per_deg = 0.0",
+    );
+    assert_eq!(e[0].field, "joint[0].servo.pivot_mm_per_deg");
+    let e = errors_after(
+        "parallel.toml",
+        "main_zero_deg = 0.0",
+        "main_zero_deg = 270.0",
+    );
+    assert_eq!(e[0].field, "joint[0].servo.main_zero_deg");
+    let e = errors_after("parallel.toml", "zero_counts = 8192", "zero_counts = 16384");
+    assert_eq!(e[0].field, "joint[0].encoder.zero_counts");
+    assert!(e[0].message.contains("14-bit"), "{}", e[0].message);
+}

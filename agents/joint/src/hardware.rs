@@ -555,3 +555,97 @@ impl Drop for DynamixelBoard {
         }
     }
 }
+
+#[cfg(test)]
+mod tests {
+    #![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)]
+    use super::*;
+    use crate::virtual_board::VirtualBoard;
+    use rig_dynamixel::timing::{read1_bytes, sync_read_bytes};
+
+    fn board(cfg: &RigConfig) -> (VirtualBoard, DynamixelBoard) {
+        let start = rig_runtime::now_ns();
+        let v = VirtualBoard::start(cfg, &[0, 1, 2, 3], start, 1).unwrap();
+        let ports = PortOverrides {
+            bus: Some(v.bus_path.clone()),
+            bridge: Some(v.bridge_path.clone()),
+        };
+        let b = DynamixelBoard::open(cfg, &[0, 1, 2, 3], &ports).unwrap();
+        (v, b)
+    }
+
+    #[test]
+    fn reads_the_simulated_plant_through_both_protocols_and_the_bridge() {
+        let cfg = rig_config::examples::load("parallel").unwrap();
+        let (_v, mut b) = board(&cfg);
+        let world = rig_sim::world::StrokeWorld::new(
+            cfg.robot().unwrap(),
+            cfg.geometry.unwrap().home,
+            crate::backend::WORLD_STROKE_M,
+            crate::backend::WORLD_STROKE_S,
+        )
+        .unwrap();
+        let mut r = Vec::new();
+        for _ in 0..8 {
+            r = b.read(1e-3).unwrap();
+        }
+        let xh540 = std::f64::consts::TAU / 4096.0;
+        let ax12 = std::f64::consts::TAU / 1228.0;
+        for (k, x) in r.iter().enumerate() {
+            // The motors where the world holds them, to one XH540 count.
+            assert!(
+                (x.motor_rad - world.motors[k]).abs() <= 0.5 * xh540 + 1e-12,
+                "joint {k}: {} vs {}",
+                x.motor_rad,
+                world.motors[k]
+            );
+            // The pivot where the sim starts it (mid-travel, 9 mm), to one AX-12A count.
+            let m_per_rad = cfg.joints[k]
+                .servo
+                .as_ref()
+                .unwrap()
+                .pivot_m_per_rad
+                .unwrap();
+            assert!(
+                (x.pivot_m.unwrap() - 0.009).abs() <= 0.5 * ax12 * m_per_rad + 1e-12,
+                "{:?}",
+                x.pivot_m
+            );
+            // A stroke of 6 mm bends the joints by a few counts to a few degrees.
+            assert!(x.deflection_rad.abs() < 0.2, "{}", x.deflection_rad);
+        }
+        // One sync read of 4 XH540s and one AX-12A in turn, and the bridge's 4 encoders.
+        let w = b.wire_per_cycle();
+        assert_eq!(w[0].bytes, sync_read_bytes(4, 4) + read1_bytes(2));
+        assert_eq!((w[0].replies, w[0].transactions), (5, 2));
+        assert_eq!(w[1].bytes, 2 + 3 + 3 * 4);
+        assert!(b.safe_state().is_empty());
+    }
+
+    #[test]
+    fn a_protocol_2_pivot_servo_joins_the_sync_read_and_a_short_pinion_is_refused() {
+        let mut cfg = rig_config::examples::load("parallel").unwrap();
+        for j in &mut cfg.joints {
+            let s = j.servo.as_mut().unwrap();
+            s.stiffness_model = "XH540-W150".into();
+            s.stiffness_protocol = 2;
+        }
+        let (_v, mut b) = board(&cfg);
+        let w = b.wire_per_cycle();
+        assert_eq!(w[0].bytes, sync_read_bytes(8, 4));
+        assert_eq!((w[0].replies, w[0].transactions), (8, 1));
+        let r = b.read(1e-3).unwrap();
+        assert!(r.iter().all(|x| (x.pivot_m.unwrap() - 0.009).abs() < 1e-4));
+        drop(b);
+        // A pinion so small that the travel needs more than the servo's turn.
+        cfg.joints[1].servo.as_mut().unwrap().pivot_m_per_rad =
+            Some(0.002e-3 * 180.0 / std::f64::consts::PI);
+        let e = DynamixelBoard::open(&cfg, &[1], &PortOverrides::default()).unwrap_err();
+        assert!(
+            e.to_string().starts_with(
+                "joint[1] (j2).servo.pivot_mm_per_deg: with pivot_zero_deg the travel 0.0–18.0 mm"
+            ),
+            "{e}"
+        );
+    }
+}

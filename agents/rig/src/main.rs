@@ -18,6 +18,9 @@
 //!   augmented model, before/after on held-out data); files in [`identify_data`], plots in
 //!   [`identify_plots`];
 //! - `rig scan` → [`scan`] → `rig_dynamixel::scan` (Dynamixel protocols 2.0 and 1.0);
+//! - `rig virtual-board`, `rig bench bus` → [`board`] → `rig_joint::virtual_board` (virtual
+//!   servos and encoder bridge fed by the simulated plant) and `rig_joint::hardware` (the
+//!   `dynamixel` backend's read cycle), `rig_dynamixel::timing` (the wire's limit);
 //! - `rig reproduce` → [`reproduce`] → `rig_sim::reproduce` (the papers' experiments); the
 //!   end-effector force there comes from `rig_model::estimator::RobotEstimator`.
 
