@@ -18,13 +18,13 @@
 //! Torque goes on at start with every goal at the present position (nothing moves), and off
 //! on exit, on the watchdog and on any fault ([`DynamixelBoard::safe_state`]; also on drop).
 
-use std::collections::BTreeMap;
 use std::path::PathBuf;
 use std::time::{Duration, Instant};
 
-use rig_config::{EncoderInterface, JointKind, RigConfig};
+use rig_config::{EncoderInterface, JointKind, RigConfig, ServoConfig};
 use rig_dynamixel::encoder::{EncoderBridge, EncoderError};
 use rig_dynamixel::servos::{BusError, BusStats, Servo, ServoBus};
+use rig_model::lever::LeverVsa;
 use thiserror::Error;
 
 use crate::backend::Reading;
@@ -120,6 +120,72 @@ pub struct DynamixelBoard {
     pub last_cycle: Duration,
 }
 
+/// A lever joint's VSA, servo section and rack travel per radian of the pivot servo [m/rad]:
+/// what driving it through Dynamixel servos needs; an error naming the field otherwise.
+pub fn lever_servo(
+    cfg: &RigConfig,
+    j: usize,
+) -> Result<(&LeverVsa, &ServoConfig, f64), HardwareError> {
+    let joint = &cfg.joints[j];
+    let at = |f: &str| format!("joint[{j}] ({}).{f}", joint.name);
+    let JointKind::Lever { vsa, .. } = &joint.kind else {
+        return Err(config_err(
+            at("kind"),
+            "Dynamixel boards drive lever VSAs (paper B); paper A's AWAS ran on its own boards",
+        ));
+    };
+    let s = joint.servo.as_ref().ok_or_else(|| {
+        config_err(
+            at("servo"),
+            "missing: a Dynamixel board needs the joint's [joint.servo] section",
+        )
+    })?;
+    let m_per_rad = s.pivot_m_per_rad.ok_or_else(|| {
+        config_err(
+            at("servo.pivot_mm_per_deg"),
+            "missing: the rack travel per degree of the pivot servo (pinion radius × π/180)",
+        )
+    })?;
+    Ok((vsa, s, m_per_rad))
+}
+
+/// Serial lines (buses or bridges) by port, each opened once at one baud rate.
+struct Lines {
+    what: &'static str,
+    list: Vec<(String, u32)>,
+    /// The config field that set each line's baud.
+    first: Vec<String>,
+}
+
+impl Lines {
+    fn new(what: &'static str) -> Self {
+        Self {
+            what,
+            list: Vec::new(),
+            first: Vec::new(),
+        }
+    }
+
+    /// The index of the line at `path`, added if new; a second baud for it is an error.
+    fn index(&mut self, path: String, baud: u32, field: String) -> Result<usize, HardwareError> {
+        match self.list.iter().position(|(p, _)| *p == path) {
+            Some(k) if self.list[k].1 != baud => Err(config_err(
+                field,
+                format!(
+                    "{baud} differs from {} of {} on the same {} {path}",
+                    self.list[k].1, self.first[k], self.what
+                ),
+            )),
+            Some(k) => Ok(k),
+            None => {
+                self.list.push((path, baud));
+                self.first.push(field);
+                Ok(self.list.len() - 1)
+            }
+        }
+    }
+}
+
 /// Timeout of one encoder-bridge reply.
 const BRIDGE_TIMEOUT: Duration = Duration::from_millis(10);
 
@@ -131,32 +197,14 @@ impl DynamixelBoard {
         js: &[usize],
         ports: &PortOverrides,
     ) -> Result<Self, HardwareError> {
-        let mut bus_paths: BTreeMap<String, (usize, u32, String)> = BTreeMap::new();
-        let mut bridge_paths: BTreeMap<String, (usize, u32, String)> = BTreeMap::new();
+        let mut buses = Lines::new("bus");
+        let mut bridges = Lines::new("bridge");
+        let mut channels: Vec<u8> = Vec::new();
         let mut joints = Vec::new();
-        let mut bus_list: Vec<(String, u32)> = Vec::new();
-        let mut bridge_list: Vec<(String, u32, u8)> = Vec::new();
         for &j in js {
             let joint = &cfg.joints[j];
             let at = |f: &str| format!("joint[{j}] ({}).{f}", joint.name);
-            let JointKind::Lever { vsa, .. } = &joint.kind else {
-                return Err(config_err(
-                    at("kind"),
-                    "the dynamixel backend drives lever VSAs (paper B); paper A's AWAS ran on its own boards",
-                ));
-            };
-            let s = joint.servo.as_ref().ok_or_else(|| {
-                config_err(
-                    at("servo"),
-                    "missing: the dynamixel backend needs the joint's [joint.servo] section",
-                )
-            })?;
-            let m_per_rad = s.pivot_m_per_rad.ok_or_else(|| {
-                config_err(
-                    at("servo.pivot_mm_per_deg"),
-                    "missing: the rack travel per degree of the pivot servo (pinion radius × π/180)",
-                )
-            })?;
+            let (vsa, s, m_per_rad) = lever_servo(cfg, j)?;
             let main = Servo::new(s.main_id, &s.main_model)
                 .map_err(|e| config_err(at("servo.main_model"), e.to_string()))?;
             let pivot = Servo::new(s.stiffness_id, &s.stiffness_model)
@@ -217,44 +265,10 @@ impl DynamixelBoard {
                     ));
                 }
             };
-            let bus = match bus_paths.get(&bus_path) {
-                Some((_, baud, first)) if *baud != s.baud => {
-                    return Err(config_err(
-                        at("servo.baud"),
-                        format!(
-                            "{} differs from {baud} of {first} on the same bus {bus_path}",
-                            s.baud
-                        ),
-                    ));
-                }
-                Some((k, ..)) => *k,
-                None => {
-                    bus_list.push((bus_path.clone(), s.baud));
-                    bus_paths.insert(bus_path, (bus_list.len() - 1, s.baud, at("servo.baud")));
-                    bus_list.len() - 1
-                }
-            };
-            let bridge = match bridge_paths.get(&bridge_path) {
-                Some((_, baud, first)) if *baud != e.baud => {
-                    return Err(config_err(
-                        at("encoder.baud"),
-                        format!(
-                            "{} differs from {baud} of {first} on the same bridge {bridge_path}",
-                            e.baud
-                        ),
-                    ));
-                }
-                Some((k, ..)) => *k,
-                None => {
-                    bridge_list.push((bridge_path.clone(), e.baud, 0));
-                    bridge_paths.insert(
-                        bridge_path,
-                        (bridge_list.len() - 1, e.baud, at("encoder.baud")),
-                    );
-                    bridge_list.len() - 1
-                }
-            };
-            let n = &mut bridge_list[bridge].2;
+            let bus = buses.index(bus_path, s.baud, at("servo.baud"))?;
+            let bridge = bridges.index(bridge_path, e.baud, at("encoder.baud"))?;
+            channels.resize(channels.len().max(bridge + 1), 0);
+            let n = &mut channels[bridge];
             *n = (*n).max(e.channel.saturating_add(1));
             joints.push(HwJoint {
                 main,
@@ -277,21 +291,21 @@ impl DynamixelBoard {
                 torque: false,
             });
         }
-        let mut buses = Vec::new();
-        for (k, (path, baud)) in bus_list.into_iter().enumerate() {
-            buses.push(BusOf {
-                bus: ServoBus::open(std::path::Path::new(&path), baud)?,
+        let mut bus_list = Vec::new();
+        for (k, (path, baud)) in buses.list.iter().enumerate() {
+            bus_list.push(BusOf {
+                bus: ServoBus::open(std::path::Path::new(path), *baud)?,
                 joints: (0..joints.len()).filter(|&i| joints[i].bus == k).collect(),
             });
         }
-        let mut bridges = Vec::new();
-        for (path, baud, n) in bridge_list {
-            let b = EncoderBridge::open(std::path::Path::new(&path), baud, BRIDGE_TIMEOUT)?;
-            bridges.push((b, n));
+        let mut bridge_list = Vec::new();
+        for ((path, baud), n) in bridges.list.iter().zip(channels) {
+            let b = EncoderBridge::open(std::path::Path::new(path), *baud, BRIDGE_TIMEOUT)?;
+            bridge_list.push((b, n));
         }
         let mut board = Self {
-            buses,
-            bridges,
+            buses: bus_list,
+            bridges: bridge_list,
             joints,
             turn: 0,
             torque_on: false,

@@ -16,7 +16,7 @@ use std::sync::atomic::{AtomicBool, Ordering};
 use std::thread::JoinHandle;
 use std::time::Duration;
 
-use rig_config::{JointKind, RigConfig};
+use rig_config::RigConfig;
 use rig_dynamixel::encoder::{COUNTS, Reading as Counts, VirtualEncoders};
 use rig_dynamixel::models::Model;
 use rig_dynamixel::servos::Servo;
@@ -56,14 +56,6 @@ pub struct VirtualBoard {
     thread: Option<JoinHandle<()>>,
 }
 
-fn config_err(field: String, message: &str) -> BackendError {
-    HardwareError::Config {
-        field,
-        message: message.to_string(),
-    }
-    .into()
-}
-
 fn counts(model: &Model, rad: f64) -> u32 {
     model
         .to_counts(rad)
@@ -85,22 +77,7 @@ impl VirtualBoard {
         let mut channels = 0;
         for &j in js {
             let c = &cfg.joints[j];
-            let at = |f: &str| format!("joint[{j}] ({}).{f}", c.name);
-            if !matches!(c.kind, JointKind::Lever { .. }) {
-                return Err(config_err(
-                    at("kind"),
-                    "the virtual board has lever joints only",
-                ));
-            }
-            let s = c.servo.as_ref().ok_or_else(|| {
-                config_err(
-                    at("servo"),
-                    "missing: the virtual board needs the servo IDs",
-                )
-            })?;
-            let m_per_rad = s
-                .pivot_m_per_rad
-                .ok_or_else(|| config_err(at("servo.pivot_mm_per_deg"), "missing"))?;
+            let (_, s, m_per_rad) = crate::hardware::lever_servo(cfg, j)?;
             let main = Servo::new(s.main_id, &s.main_model).map_err(HardwareError::from)?;
             let pivot =
                 Servo::new(s.stiffness_id, &s.stiffness_model).map_err(HardwareError::from)?;
