@@ -43,6 +43,11 @@ enum What {
     Throughput(ThroughputArgs),
     /// The dynamixel backend's read cycle (servos and encoders of every joint) against the
     /// wire's theoretical limit; on a virtual board unless --bus/--bridge name hardware.
+    ///
+    /// On a virtual board the figure is our software and the kernel's pseudo-terminals, no
+    /// wire; on the rig it includes the wire, the servos' Return Delay Time and the USB
+    /// adapter's latency timer (docs/HARDWARE.md). Example on paper B's rig:
+    /// rig bench bus --bus /dev/ttyUSB0 --bridge /dev/ttyACM0 --json
     Bus(crate::board::BusArgs),
 }
 

@@ -32,14 +32,7 @@ fn joints(cfg: &RigConfig, names: &[String]) -> Result<Vec<usize>, CliError> {
         .collect()
 }
 
-/// Stand in for a joint board's hardware: virtual servos with the config's IDs and models
-/// and a virtual encoder bridge, on pseudo-terminals, whose readings come from the simulated
-/// plant (the world of the `sim` backend). Prints the two ports, then serves them until
-/// Ctrl-C or --duration. Run the agent against them:
-///
-///   rig virtual-board --config rig-config/examples/parallel.toml
-///   rig-joint --config rig-config/examples/parallel.toml --joint j1,j2,j3,j4 \
-///       --backend dynamixel --bus /dev/pts/N --bridge /dev/pts/M
+/// Arguments of `rig virtual-board` (its help is on the subcommand in main.rs).
 #[derive(Debug, clap::Args)]
 pub struct VirtualArgs {
     /// Rig config (default: the example parallel robot)
@@ -99,13 +92,8 @@ pub fn virtual_board(a: &VirtualArgs) -> Result<(), CliError> {
     Ok(())
 }
 
-/// Time the `dynamixel` backend's read cycle (servo positions and encoders of every joint
-/// served) and set it against the wire's theoretical limit at the config's baud rates.
-///
-/// Without --bus/--bridge the board is virtual (`rig virtual-board`): the figure is then the
-/// cost of our software and the kernel's pseudo-terminals, with no wire in between; on the
-/// rig, give the ports and the figure includes the wire, the servos' Return Delay Time and
-/// the USB adapter's latency timer (docs/HARDWARE.md).
+/// Arguments of `rig bench bus` (its help is on the subcommand in bench.rs): time the
+/// `dynamixel` backend's read cycle and set it against the wire's limit at the config's bauds.
 #[derive(Debug, clap::Args)]
 pub struct BusArgs {
     /// Rig config (default: the example parallel robot: 4 joints on one bus and one bridge)

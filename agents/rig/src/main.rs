@@ -96,12 +96,22 @@ enum Command {
     Scan(scan::Args),
     /// Stand in for a joint board's hardware: virtual servos and encoder bridge on
     /// pseudo-terminals, driven by the simulated plant, for `rig-joint --backend dynamixel`.
+    ///
+    /// The servos have the config's IDs and models (control tables in memory, both
+    /// protocols); their positions and the encoders' counts come from the same simulated world
+    /// as the sim backend's. Prints the two ports, then serves them until Ctrl-C:
+    ///
+    ///   rig virtual-board --config rig-config/examples/parallel.toml
+    ///   rig-joint --config rig-config/examples/parallel.toml --joint j1,j2,j3,j4 \
+    ///       --backend dynamixel --bus /dev/pts/N --bridge /dev/pts/M
+    #[command(verbatim_doc_comment)]
     VirtualBoard(board::VirtualArgs),
     /// Show a running rig live in Rerun: hysteresis loops, stiffness, end-effector force,
     /// allocations (spawns the viewer when `rerun` is on PATH, else saves an .rrd).
     Viz(viz::Args),
     /// Measure the rig on this machine: Zenoh round trip and sample→estimate latency
-    /// (`latency`), or how many joints one estimator host keeps up with (`throughput`).
+    /// (`latency`), how many joints one estimator host keeps up with (`throughput`), or the
+    /// Dynamixel board's read cycle against the wire's limit (`bus`).
     Bench(bench::Args),
 }
 
