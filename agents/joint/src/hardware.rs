@@ -7,7 +7,8 @@
 //! - the pivot servos: protocol-2.0 ones in the same sync read, protocol-1.0 ones (no sync
 //!   read in 1.0) one per cycle in turn — the pivot moves at a few mm/s, so a 4-joint board
 //!   reads each every 4 ms instead of paying 4 extra transfers every cycle,
-//! - the encoders of a bridge with one request,
+//! - the encoders of a bridge with one request, on a thread of its own while the buses are
+//!   read (the lines are independent),
 //!
 //! then moves each pivot servo's goal towards the guard's goal at the joint's rate limit.
 //! Mapping (config `[joint.servo]`, `[joint.encoder]`):
@@ -99,6 +100,8 @@ pub struct WireLoad {
     pub replies: usize,
     /// Request–reply round trips (each pays the USB adapter's latency).
     pub transactions: usize,
+    /// An encoder bridge (read at the same time as the buses), or a servo bus.
+    pub bridge: bool,
 }
 
 /// A bus and the indices of its joints.
@@ -367,40 +370,29 @@ impl DynamixelBoard {
         let t0 = Instant::now();
         let turn = self.turn;
         self.turn = self.turn.wrapping_add(1);
-        for b in &mut self.buses {
-            // Main motors, protocol-2.0 pivots, and this cycle's protocol-1.0 pivot.
-            let p1: Vec<usize> = b
-                .joints
-                .iter()
-                .copied()
-                .filter(|&k| self.joints[k].pivot.model.protocol == 1)
-                .collect();
-            let due = (!p1.is_empty()).then(|| p1[turn % p1.len()]);
-            let mut servos = Vec::new();
-            let mut slots = Vec::new();
-            for &k in &b.joints {
-                let j = &self.joints[k];
-                servos.push(j.main);
-                slots.push((k, false));
-                if j.pivot.model.protocol == 2 || due == Some(k) {
-                    servos.push(j.pivot);
-                    slots.push((k, true));
-                }
+        // The bridges answer on their own lines while the buses are read: a cycle takes the
+        // longer of the two, not their sum.
+        let (buses, joints, bridges) = (&mut self.buses, &mut self.joints, &mut self.bridges);
+        let (servos, counts) = std::thread::scope(|scope| {
+            let encoders = scope.spawn(move || {
+                bridges
+                    .iter_mut()
+                    .map(|(bridge, n)| bridge.read(*n))
+                    .collect::<Result<Vec<_>, _>>()
+            });
+            let servos = read_buses(buses, joints, turn);
+            (servos, encoders.join())
+        });
+        servos?;
+        let counts = match counts {
+            Ok(c) => c?,
+            Err(_) => {
+                return Err(config_err(
+                    "encoder bridge".into(),
+                    "the bridge's reading thread failed",
+                ));
             }
-            let p = b.bus.positions(&servos)?;
-            for ((k, is_pivot), rad) in slots.into_iter().zip(p) {
-                let j = &mut self.joints[k];
-                if is_pivot {
-                    j.pivot_m = (rad - j.pivot_zero) * j.m_per_rad;
-                } else {
-                    j.motor_rad = rad - j.main_zero;
-                }
-            }
-        }
-        let mut counts: Vec<Vec<rig_dynamixel::encoder::Reading>> = Vec::new();
-        for (bridge, n) in &mut self.bridges {
-            counts.push(bridge.read(*n)?);
-        }
+        };
         self.ramp(dt)?;
         let mut out = Vec::with_capacity(self.joints.len());
         for j in &self.joints {
@@ -535,6 +527,7 @@ impl DynamixelBoard {
                 bytes: sync_read_bytes(p2.len(), size2) + reads1 * read1_bytes(2),
                 replies: p2.len() + reads1,
                 transactions: usize::from(!p2.is_empty()) + reads1,
+                bridge: false,
             });
         }
         for (bridge, n) in &self.bridges {
@@ -544,6 +537,7 @@ impl DynamixelBoard {
                 bytes: bridge_bytes(usize::from(*n)),
                 replies: 1,
                 transactions: 1,
+                bridge: true,
             });
         }
         out
@@ -559,6 +553,41 @@ impl DynamixelBoard {
                 failures: a.failures + b.bus.stats.failures,
             })
     }
+}
+
+/// One cycle's servo reads on every bus: main motors and protocol-2.0 pivots in one sync
+/// read, this cycle's protocol-1.0 pivot (in turn by `turn`) alone.
+fn read_buses(buses: &mut [BusOf], joints: &mut [HwJoint], turn: usize) -> Result<(), BusError> {
+    for b in buses {
+        let p1: Vec<usize> = b
+            .joints
+            .iter()
+            .copied()
+            .filter(|&k| joints[k].pivot.model.protocol == 1)
+            .collect();
+        let due = (!p1.is_empty()).then(|| p1[turn % p1.len()]);
+        let mut servos = Vec::new();
+        let mut slots = Vec::new();
+        for &k in &b.joints {
+            let j = &joints[k];
+            servos.push(j.main);
+            slots.push((k, false));
+            if j.pivot.model.protocol == 2 || due == Some(k) {
+                servos.push(j.pivot);
+                slots.push((k, true));
+            }
+        }
+        let p = b.bus.positions(&servos)?;
+        for ((k, is_pivot), rad) in slots.into_iter().zip(p) {
+            let j = &mut joints[k];
+            if is_pivot {
+                j.pivot_m = (rad - j.pivot_zero) * j.m_per_rad;
+            } else {
+                j.motor_rad = rad - j.main_zero;
+            }
+        }
+    }
+    Ok(())
 }
 
 impl Drop for DynamixelBoard {

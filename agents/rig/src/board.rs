@@ -183,12 +183,20 @@ pub fn bench_bus(a: &BusArgs) -> Result<(), CliError> {
                 "bytes": l.bytes,
                 "replies": l.replies,
                 "transactions": l.transactions,
+                "bridge": l.bridge,
                 "wire_us": wire_s(l.bytes, l.baud) * 1e6,
             })
         })
         .collect();
-    // The lines are read one after the other.
-    let wire_us: f64 = loads.iter().map(|l| wire_s(l.bytes, l.baud) * 1e6).sum();
+    // The buses are read one after the other, the bridges likewise, both groups at once.
+    let group = |bridge: bool| -> f64 {
+        loads
+            .iter()
+            .filter(|l| l.bridge == bridge)
+            .map(|l| wire_s(l.bytes, l.baud) * 1e6)
+            .sum()
+    };
+    let wire_us = group(false).max(group(true));
     let transactions: usize = loads.iter().map(|l| l.transactions).sum();
     let out = json!({
         "board": kind,
@@ -232,7 +240,7 @@ pub fn bench_bus(a: &BusArgs) -> Result<(), CliError> {
         );
     }
     println!(
-        "theoretical limit: {:.0} µs a cycle on the wire = {:.0} Hz (rate_hz {}); add each reply's Return Delay Time and each round trip's USB latency",
+        "theoretical limit: {:.0} µs a cycle on the wire (buses and bridges at once) = {:.0} Hz (rate_hz {}); add each reply's Return Delay Time and each round trip's USB latency",
         wire_us,
         1e6 / wire_us,
         cfg.rate_hz
