@@ -34,6 +34,13 @@ pub struct Reading {
 }
 
 impl Reading {
+    /// The count that reads `rad` from `zero` (the inverse of [`Self::rad_from`], to the
+    /// nearest count): what a sensor at that angle shows.
+    pub fn counts_at(rad: f64, zero: u16) -> u16 {
+        let c = (rad * f64::from(COUNTS) / std::f64::consts::TAU).round() as i64;
+        (c + i64::from(zero)).rem_euclid(i64::from(COUNTS)) as u16
+    }
+
     /// The angle [rad] in [−π, π) from `zero` counts.
     pub fn rad_from(&self, zero: u16) -> f64 {
         let d = (i32::from(self.counts) - i32::from(zero)).rem_euclid(i32::from(COUNTS));
@@ -53,9 +60,13 @@ pub fn encode_reply(readings: &[Reading]) -> Vec<u8> {
         out.extend_from_slice(&(r.counts & 0x3FFF).to_le_bytes());
         out.push(u8::from(r.error) | (u8::from(r.magnet) << 1));
     }
-    let sum = out.iter().fold(0u8, |s, b| s.wrapping_add(*b));
-    out.push(!sum);
+    out.push(checksum(&out));
     out
+}
+
+/// A reply's checksum: the complement of the sum of its bytes before it, low byte.
+fn checksum(bytes: &[u8]) -> u8 {
+    !bytes.iter().fold(0u8, |s, b| s.wrapping_add(*b))
 }
 
 #[derive(Debug, Error)]
@@ -180,12 +191,10 @@ impl EncoderBridge {
             bridge: self.name.clone(),
             source,
         };
-        self.port.discard_input_buffer().map_err(io)?;
-        self.port.write_all(&[REQUEST, n]).map_err(io)?;
+        crate::line::send(&self.port, &[REQUEST, n]).map_err(io)?;
         let want = 3 + 3 * usize::from(n);
         let mut buf: Vec<u8> = Vec::with_capacity(want);
         let deadline = Instant::now() + self.timeout;
-        let mut chunk = [0u8; 64];
         loop {
             // Skip anything before the reply marker.
             if let Some(k) = buf.iter().position(|b| *b == REPLY) {
@@ -195,8 +204,7 @@ impl EncoderBridge {
             }
             if buf.len() >= want {
                 let body = &buf[..want - 1];
-                let sum = body.iter().fold(0u8, |s, b| s.wrapping_add(*b));
-                if buf[1] != n || !sum != buf[want - 1] {
+                if buf[1] != n || checksum(body) != buf[want - 1] {
                     return Ok(Err(Fail::Checksum));
                 }
                 let readings = body[2..]
@@ -209,25 +217,15 @@ impl EncoderBridge {
                     .collect();
                 return Ok(Ok(readings));
             }
-            let now = Instant::now();
-            if now >= deadline {
-                return Ok(Err(Fail::Timeout));
-            }
-            self.port
-                .set_read_timeout(deadline - now)
-                .map_err(|source| EncoderError::Io {
-                    bridge: self.name.clone(),
-                    source,
-                })?;
-            match self.port.read(&mut chunk) {
-                Ok(k) => buf.extend_from_slice(&chunk[..k]),
-                Err(e) if e.kind() == std::io::ErrorKind::TimedOut => {}
-                Err(source) => {
-                    return Err(EncoderError::Io {
+            let in_time =
+                crate::line::receive(&mut self.port, &mut buf, deadline).map_err(|source| {
+                    EncoderError::Io {
                         bridge: self.name.clone(),
                         source,
-                    });
-                }
+                    }
+                })?;
+            if !in_time {
+                return Ok(Err(Fail::Timeout));
             }
         }
     }
@@ -313,6 +311,20 @@ mod tests {
         assert!((at(5).rad_from(16380) - 9.0 * one).abs() < 1e-15);
         assert!((at(16380).rad_from(5) + 9.0 * one).abs() < 1e-15);
         assert!((at(8192).rad_from(0) + std::f64::consts::PI).abs() < 1e-15);
+        // The inverse, across the wrap.
+        for (rad, zero) in [
+            (0.0, 100),
+            (9.0 * one, 16380),
+            (-9.0 * one, 5),
+            (-0.7, 8192),
+        ] {
+            let c = Reading::counts_at(rad, zero);
+            assert!(
+                (at(c).rad_from(zero) - rad).abs() <= 0.5 * one,
+                "{rad} from {zero}"
+            );
+        }
+        assert_eq!(Reading::counts_at(9.0 * one, 16380), 5);
     }
 
     #[test]

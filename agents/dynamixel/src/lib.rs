@@ -15,6 +15,7 @@
 //! - [`pty`]: the pseudo-terminal device those virtual parts (servos, encoder bridge) run on.
 
 pub mod encoder;
+mod line;
 pub mod models;
 pub mod protocol1;
 pub mod protocol2;

@@ -134,17 +134,13 @@ impl Bus1 {
 
     fn transfer(&mut self, id: u8, code: u8, params: &[u8], want: usize) -> Result<Vec<u8>, Error> {
         self.buf.clear();
-        self.port.discard_input_buffer()?;
-        self.port.write_all(
-            &Frame {
-                id,
-                code,
-                params: params.to_vec(),
-            }
-            .encode(),
-        )?;
+        let request = Frame {
+            id,
+            code,
+            params: params.to_vec(),
+        };
+        crate::line::send(&self.port, &request.encode())?;
         let deadline = Instant::now() + self.timeout;
-        let mut chunk = [0u8; 64];
         loop {
             match parse(&self.buf) {
                 Parsed::Frame(f, n) => {
@@ -170,17 +166,10 @@ impl Bus1 {
                 }
                 Parsed::Incomplete => {}
             }
-            let now = Instant::now();
-            if now >= deadline {
+            if !crate::line::receive(&mut self.port, &mut self.buf, deadline)? {
                 return Err(Error::Timeout {
                     timeout_ms: self.timeout.as_millis() as u64,
                 });
-            }
-            self.port.set_read_timeout(deadline - now)?;
-            match self.port.read(&mut chunk) {
-                Ok(n) => self.buf.extend_from_slice(&chunk[..n]),
-                Err(e) if e.kind() == std::io::ErrorKind::TimedOut => {}
-                Err(e) => return Err(e.into()),
             }
         }
     }
