@@ -20,7 +20,7 @@
 //! on exit, on the watchdog and on any fault ([`DynamixelBoard::safe_state`]; also on drop).
 
 use std::path::PathBuf;
-use std::time::{Duration, Instant};
+use std::time::Duration;
 
 use rig_config::{EncoderInterface, JointKind, RigConfig, ServoConfig};
 use rig_dynamixel::encoder::{EncoderBridge, EncoderError};
@@ -48,6 +48,39 @@ fn config_err(field: String, message: impl Into<String>) -> HardwareError {
     }
 }
 
+/// How a lever joint's servo angles [rad from each servo's centre] map to the joint: the
+/// config's `main_zero_deg`, `pivot_zero_deg`, `pivot_mm_per_deg`. The virtual board shows
+/// the plant through the same map.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct ServoMap {
+    pub main_zero: f64,
+    pub pivot_zero: f64,
+    /// Rack travel per radian of the pivot servo [m/rad].
+    pub m_per_rad: f64,
+}
+
+impl ServoMap {
+    /// Link-side motor angle θ of a main servo angle.
+    pub fn motor_rad(&self, servo: f64) -> f64 {
+        servo - self.main_zero
+    }
+
+    /// Main servo angle of a link-side motor angle θ.
+    pub fn main_servo(&self, motor_rad: f64) -> f64 {
+        motor_rad + self.main_zero
+    }
+
+    /// Pivot displacement d [m] of a pivot servo angle.
+    pub fn pivot_m(&self, servo: f64) -> f64 {
+        (servo - self.pivot_zero) * self.m_per_rad
+    }
+
+    /// Pivot servo angle of a pivot displacement d [m].
+    pub fn pivot_servo(&self, pivot_m: f64) -> f64 {
+        self.pivot_zero + pivot_m / self.m_per_rad
+    }
+}
+
 /// Ports given on the command line instead of the config's (the same for every joint served).
 #[derive(Debug, Clone, Default)]
 pub struct PortOverrides {
@@ -64,9 +97,7 @@ struct HwJoint {
     bridge: usize,
     channel: usize,
     zero_counts: u16,
-    main_zero: f64,
-    pivot_zero: f64,
-    m_per_rad: f64,
+    map: ServoMap,
     /// Pivot travel [m] and fastest motion [m/s].
     d_min: f64,
     d_max: f64,
@@ -80,12 +111,6 @@ struct HwJoint {
     written: Option<u32>,
     /// Torque of this joint's servos.
     torque: bool,
-}
-
-impl HwJoint {
-    fn pivot_rad(&self, d: f64) -> f64 {
-        self.pivot_zero + d / self.m_per_rad
-    }
 }
 
 /// The average load of one read cycle on one line.
@@ -118,17 +143,14 @@ pub struct DynamixelBoard {
     bridges: Vec<(EncoderBridge, u8)>,
     joints: Vec<HwJoint>,
     turn: usize,
-    torque_on: bool,
-    /// Duration of the last read cycle.
-    pub last_cycle: Duration,
 }
 
-/// A lever joint's VSA, servo section and rack travel per radian of the pivot servo [m/rad]:
-/// what driving it through Dynamixel servos needs; an error naming the field otherwise.
+/// A lever joint's VSA, servo section and servo map: what driving it through Dynamixel
+/// servos needs; an error naming the field otherwise.
 pub fn lever_servo(
     cfg: &RigConfig,
     j: usize,
-) -> Result<(&LeverVsa, &ServoConfig, f64), HardwareError> {
+) -> Result<(&LeverVsa, &ServoConfig, ServoMap), HardwareError> {
     let joint = &cfg.joints[j];
     let at = |f: &str| format!("joint[{j}] ({}).{f}", joint.name);
     let JointKind::Lever { vsa, .. } = &joint.kind else {
@@ -149,7 +171,12 @@ pub fn lever_servo(
             "missing: the rack travel per degree of the pivot servo (pinion radius × π/180)",
         )
     })?;
-    Ok((vsa, s, m_per_rad))
+    let map = ServoMap {
+        main_zero: s.main_zero_rad,
+        pivot_zero: s.pivot_zero_rad,
+        m_per_rad,
+    };
+    Ok((vsa, s, map))
 }
 
 /// Serial lines (buses or bridges) by port, each opened once at one baud rate.
@@ -207,13 +234,13 @@ impl DynamixelBoard {
         for &j in js {
             let joint = &cfg.joints[j];
             let at = |f: &str| format!("joint[{j}] ({}).{f}", joint.name);
-            let (vsa, s, m_per_rad) = lever_servo(cfg, j)?;
+            let (vsa, s, map) = lever_servo(cfg, j)?;
             let main = Servo::new(s.main_id, &s.main_model)
                 .map_err(|e| config_err(at("servo.main_model"), e.to_string()))?;
             let pivot = Servo::new(s.stiffness_id, &s.stiffness_model)
                 .map_err(|e| config_err(at("servo.stiffness_model"), e.to_string()))?;
             // The pivot servo must reach the whole travel.
-            let ends = [vsa.d_min, vsa.d_max].map(|d| s.pivot_zero_rad + d / m_per_rad);
+            let ends = [vsa.d_min, vsa.d_max].map(|d| map.pivot_servo(d));
             if ends.iter().any(|&a| pivot.model.to_counts(a).is_none()) {
                 return Err(config_err(
                     at("servo.pivot_mm_per_deg"),
@@ -280,9 +307,7 @@ impl DynamixelBoard {
                 bridge,
                 channel: usize::from(e.channel),
                 zero_counts: e.zero_counts as u16,
-                main_zero: s.main_zero_rad,
-                pivot_zero: s.pivot_zero_rad,
-                m_per_rad,
+                map,
                 d_min: vsa.d_min,
                 d_max: vsa.d_max,
                 rate: joint.limits.stiffness_rate,
@@ -311,8 +336,6 @@ impl DynamixelBoard {
             bridges: bridge_list,
             joints,
             turn: 0,
-            torque_on: false,
-            last_cycle: Duration::ZERO,
         };
         board.start()?;
         Ok(board)
@@ -334,8 +357,8 @@ impl DynamixelBoard {
             for (i, &k) in b.joints.iter().enumerate() {
                 let j = &mut self.joints[k];
                 let (main, pivot) = (p[2 * i], p[2 * i + 1]);
-                j.motor_rad = main - j.main_zero;
-                j.pivot_m = (pivot - j.pivot_zero) * j.m_per_rad;
+                j.motor_rad = j.map.motor_rad(main);
+                j.pivot_m = j.map.pivot_m(pivot);
                 // Hold the present pivot position as the goal (clamped into the travel: the
                 // ramp then brings an out-of-travel pivot back at the rate limit).
                 j.goal_m = j.pivot_m.clamp(j.d_min, j.d_max);
@@ -356,18 +379,8 @@ impl DynamixelBoard {
         Ok(())
     }
 
-    /// Number of joints served.
-    pub fn len(&self) -> usize {
-        self.joints.len()
-    }
-
-    pub fn is_empty(&self) -> bool {
-        self.joints.is_empty()
-    }
-
     /// One read cycle, `dt` [s] after the previous one: every joint's reading, in order.
     pub fn read(&mut self, dt: f64) -> Result<Vec<Reading>, HardwareError> {
-        let t0 = Instant::now();
         let turn = self.turn;
         self.turn = self.turn.wrapping_add(1);
         // The bridges answer on their own lines while the buses are read: a cycle takes the
@@ -396,10 +409,17 @@ impl DynamixelBoard {
         self.ramp(dt)?;
         let mut out = Vec::with_capacity(self.joints.len());
         for j in &self.joints {
-            // The bridge answered `n` encoders, every channel below `n`: always there.
-            let Some(c) = counts.get(j.bridge).and_then(|c| c.get(j.channel)) else {
-                continue;
-            };
+            // The bridge answered `n` encoders, every channel below `n`: always there (a
+            // reading skipped here would shift every later joint's onto the wrong joint).
+            let c = counts
+                .get(j.bridge)
+                .and_then(|c| c.get(j.channel))
+                .ok_or_else(|| {
+                    config_err(
+                        "encoder.channel".into(),
+                        format!("channel {} missing from the bridge's reply", j.channel),
+                    )
+                })?;
             out.push(Reading {
                 motor_rad: j.motor_rad,
                 deflection_rad: c.rad_from(j.zero_counts),
@@ -409,7 +429,6 @@ impl DynamixelBoard {
                 truth: None,
             });
         }
-        self.last_cycle = t0.elapsed();
         Ok(out)
     }
 
@@ -424,7 +443,7 @@ impl DynamixelBoard {
                 }
                 let step = j.rate * dt.max(0.0);
                 j.ramp_m += (j.goal_m - j.ramp_m).clamp(-step, step);
-                let rad = j.pivot_rad(j.ramp_m);
+                let rad = j.map.pivot_servo(j.ramp_m);
                 let c = j.pivot.model.to_counts(rad);
                 if c.is_some() && c != j.written {
                     b.bus.set_goal(j.pivot, rad)?;
@@ -449,20 +468,25 @@ impl DynamixelBoard {
     /// Whether the pivot goal `goal_m` of joint `k` is one its servo can reach.
     pub fn pivot_reachable(&self, k: usize, goal_m: f64) -> bool {
         let j = &self.joints[k];
-        j.pivot.model.to_counts(j.pivot_rad(goal_m)).is_some()
+        j.pivot.model.to_counts(j.map.pivot_servo(goal_m)).is_some()
     }
 
     /// Joint `k`'s main motor goal [rad, link side] (the guard has checked its limits).
     pub fn set_motor_goal(&mut self, k: usize, rad: f64) -> Result<(), HardwareError> {
         let j = &self.joints[k];
         let b = &mut self.buses[j.bus].bus;
-        b.set_goal(j.main, rad + j.main_zero)?;
+        b.set_goal(j.main, j.map.main_servo(rad))?;
         Ok(())
     }
 
-    /// Torque of joint `k`'s servos on or off. On, the pivot's goal restarts from where it is.
+    /// Torque of joint `k`'s servos on or off; written only when it changes (every command
+    /// carries `torque_enable`: the 10 Hz heartbeats would otherwise cost two bus transfers
+    /// each). Switched on, the pivot's goal restarts from where it is.
     pub fn torque(&mut self, k: usize, on: bool) -> Result<(), HardwareError> {
         let j = &mut self.joints[k];
+        if j.torque == on {
+            return Ok(());
+        }
         let b = &mut self.buses[j.bus].bus;
         if on {
             j.ramp_m = j.pivot_m;
@@ -473,7 +497,6 @@ impl DynamixelBoard {
         j.torque = on;
         b.torque(j.main, on)?;
         b.torque(j.pivot, on)?;
-        self.torque_on = self.joints.iter().any(|j| j.torque);
         Ok(())
     }
 
@@ -492,7 +515,6 @@ impl DynamixelBoard {
         for j in &mut self.joints {
             j.torque = false;
         }
-        self.torque_on = false;
         failed
     }
 
@@ -581,9 +603,9 @@ fn read_buses(buses: &mut [BusOf], joints: &mut [HwJoint], turn: usize) -> Resul
         for ((k, is_pivot), rad) in slots.into_iter().zip(p) {
             let j = &mut joints[k];
             if is_pivot {
-                j.pivot_m = (rad - j.pivot_zero) * j.m_per_rad;
+                j.pivot_m = j.map.pivot_m(rad);
             } else {
-                j.motor_rad = rad - j.main_zero;
+                j.motor_rad = j.map.motor_rad(rad);
             }
         }
     }
@@ -593,7 +615,7 @@ fn read_buses(buses: &mut [BusOf], joints: &mut [HwJoint], turn: usize) -> Resul
 impl Drop for DynamixelBoard {
     /// A board dropped with torque on (an error path) still leaves the servos limp.
     fn drop(&mut self) {
-        if self.torque_on {
+        if self.joints.iter().any(|j| j.torque) {
             let _ = self.safe_state();
         }
     }

@@ -17,14 +17,14 @@ use std::thread::JoinHandle;
 use std::time::Duration;
 
 use rig_config::RigConfig;
-use rig_dynamixel::encoder::{COUNTS, Reading as Counts, VirtualEncoders};
+use rig_dynamixel::encoder::{Reading as Counts, VirtualEncoders};
 use rig_dynamixel::models::Model;
 use rig_dynamixel::servos::Servo;
 use rig_dynamixel::virtual_bus::{VirtualBus, VirtualServo};
 use rig_runtime::now_ns;
 
 use crate::backend::{BackendError, SimBackend};
-use crate::hardware::HardwareError;
+use crate::hardware::{HardwareError, ServoMap};
 
 /// How often the plant thread updates the virtual hardware.
 const STEP: Duration = Duration::from_micros(250);
@@ -35,11 +35,8 @@ struct Joint {
     main: Servo,
     pivot: Servo,
     channel: usize,
-    zero_counts: u32,
-    resolution: f64,
-    main_zero: f64,
-    pivot_zero: f64,
-    m_per_rad: f64,
+    zero_counts: u16,
+    map: ServoMap,
 }
 
 /// The virtual board; dropping it stops the plant and the devices.
@@ -77,7 +74,7 @@ impl VirtualBoard {
         let mut channels = 0;
         for &j in js {
             let c = &cfg.joints[j];
-            let (_, s, m_per_rad) = crate::hardware::lever_servo(cfg, j)?;
+            let (_, s, map) = crate::hardware::lever_servo(cfg, j)?;
             let main = Servo::new(s.main_id, &s.main_model).map_err(HardwareError::from)?;
             let pivot =
                 Servo::new(s.stiffness_id, &s.stiffness_model).map_err(HardwareError::from)?;
@@ -85,7 +82,7 @@ impl VirtualBoard {
             let mut vm = VirtualServo::new(*main.model, main.id);
             vm.set(main.model.present_position, counts(main.model, 0.0));
             let mut vp = VirtualServo::new(*pivot.model, pivot.id);
-            let pivot_counts = counts(pivot.model, s.pivot_zero_rad + sim.actuator() / m_per_rad);
+            let pivot_counts = counts(pivot.model, map.pivot_servo(sim.actuator()));
             vp.set(pivot.model.present_position, pivot_counts);
             vp.set(pivot.model.goal_position, pivot_counts);
             servos.extend([vm, vp]);
@@ -95,11 +92,8 @@ impl VirtualBoard {
                 main,
                 pivot,
                 channel: usize::from(c.encoder.channel),
-                zero_counts: c.encoder.zero_counts,
-                resolution: c.encoder.resolution_rad,
-                main_zero: s.main_zero_rad,
-                pivot_zero: s.pivot_zero_rad,
-                m_per_rad,
+                zero_counts: c.encoder.zero_counts as u16,
+                map,
             });
         }
         let io = |e: std::io::Error| BackendError::World(format!("virtual board: {e}"));
@@ -155,7 +149,7 @@ fn step(
             && p.get(p.model.torque_enable) == 1
         {
             let goal = p.model.to_rad(p.get(p.model.goal_position));
-            j.sim.set_actuator_goal((goal - j.pivot_zero) * j.m_per_rad);
+            j.sim.set_actuator_goal(j.map.pivot_m(goal));
         }
         let Ok(r) = j.sim.read(t, dt.max(1e-6)) else {
             continue;
@@ -163,18 +157,17 @@ fn step(
         if let Some(m) = table.get_mut(&j.main.id) {
             m.set(
                 m.model.present_position,
-                counts(j.main.model, r.motor_rad + j.main_zero),
+                counts(j.main.model, j.map.main_servo(r.motor_rad)),
             );
         }
         if let (Some(p), Some(d)) = (table.get_mut(&j.pivot.id), r.pivot_m) {
             p.set(
                 p.model.present_position,
-                counts(j.pivot.model, j.pivot_zero + d / j.m_per_rad),
+                counts(j.pivot.model, j.map.pivot_servo(d)),
             );
         }
         if let Some(e) = enc.readings.get_mut(j.channel) {
-            let c = (r.deflection_rad / j.resolution).round() as i64 + i64::from(j.zero_counts);
-            e.counts = c.rem_euclid(i64::from(COUNTS)) as u16;
+            e.counts = Counts::counts_at(r.deflection_rad, j.zero_counts);
         }
     }
 }
