@@ -409,16 +409,16 @@ impl EstimatorCore {
         self.stats.joint_estimates += joint_out.len() as u64;
         // Where a torque sensor measures what the model predicts, watch the residual.
         let mut diagnoses = Vec::new();
+        // 2 s windows, looked at every 0.25 s.
+        let per_s = 1e9 / self.timing.period_ns.max(1) as f64;
+        let new = || {
+            ResidualMonitor::new(
+                (2.0 * per_s).round() as usize,
+                (0.25 * per_s).round() as usize,
+            )
+        };
         for e in &joint_out {
             let j = e.joint as usize;
-            // 2 s windows, looked at every 0.25 s.
-            let per_s = 1e9 / self.timing.period_ns.max(1) as f64;
-            let new = || {
-                ResidualMonitor::new(
-                    (2.0 * per_s).round() as usize,
-                    (0.25 * per_s).round() as usize,
-                )
-            };
             if let (Some(r), Some(Some(s)), Some(m)) =
                 (e.residual_nm, slots.get(j), self.monitors.get_mut(j))
                 && let Some(d) =
