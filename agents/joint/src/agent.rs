@@ -156,20 +156,7 @@ impl Served {
                     eprintln!("rig-joint {}: dropped a malformed command: {e}", self.name);
                     continue;
                 }
-                // Within the travel (the guard names a goal outside it) yet beyond what the
-                // servo reaches: a config whose pivot mapping does not cover the travel.
-                Ok(cmd) => match cmd.pivot_goal_m {
-                    Some(g)
-                        if (self.limits.actuator_min..=self.limits.actuator_max).contains(&g)
-                            && !board.reachable(self.k, g) =>
-                    {
-                        Verdict::Rejected(format!(
-                            "pivot goal {:.3} mm is beyond the pivot servo's range",
-                            g * 1e3
-                        ))
-                    }
-                    _ => self.guard.on_command(&cmd, now, board.actuator(self.k)),
-                },
+                Ok(cmd) => self.guard.on_command(&cmd, now, board.actuator(self.k)),
             };
             match verdict {
                 Verdict::Accepted {

@@ -332,15 +332,6 @@ impl Board {
         }
     }
 
-    /// Whether joint `k`'s actuator can reach `goal` (the servo's range; the guard checks
-    /// the mechanism's).
-    pub fn reachable(&self, k: usize, goal: f64) -> bool {
-        match self {
-            Board::Sim(_) => true,
-            Board::Dynamixel(b) => b.pivot_reachable(k, goal),
-        }
-    }
-
     /// Applies an accepted command's motor goal and torque switch to joint `k`. The
     /// simulated world holds its motors where the world puts them: nothing to do.
     pub fn apply(

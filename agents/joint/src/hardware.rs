@@ -239,7 +239,8 @@ impl DynamixelBoard {
                 .map_err(|e| config_err(at("servo.main_model"), e.to_string()))?;
             let pivot = Servo::new(s.stiffness_id, &s.stiffness_model)
                 .map_err(|e| config_err(at("servo.stiffness_model"), e.to_string()))?;
-            // The pivot servo must reach the whole travel.
+            // The pivot servo must reach the whole travel: then every goal the guard lets
+            // through is one it can reach.
             let ends = [vsa.d_min, vsa.d_max].map(|d| map.pivot_servo(d));
             if ends.iter().any(|&a| pivot.model.to_counts(a).is_none()) {
                 return Err(config_err(
@@ -463,12 +464,6 @@ impl DynamixelBoard {
     pub fn set_actuator_goal(&mut self, k: usize, goal_m: f64) {
         let j = &mut self.joints[k];
         j.goal_m = goal_m.clamp(j.d_min, j.d_max);
-    }
-
-    /// Whether the pivot goal `goal_m` of joint `k` is one its servo can reach.
-    pub fn pivot_reachable(&self, k: usize, goal_m: f64) -> bool {
-        let j = &self.joints[k];
-        j.pivot.model.to_counts(j.map.pivot_servo(goal_m)).is_some()
     }
 
     /// Joint `k`'s main motor goal [rad, link side] (the guard has checked its limits).
