@@ -232,6 +232,15 @@ impl Served {
     }
 }
 
+/// Runs `f`, which may block on serial I/O, off the async workers' backs where the runtime
+/// allows it (a multi-threaded one; `block_in_place` would panic on a current-thread one).
+fn blocking<T>(f: impl FnOnce() -> T) -> T {
+    match tokio::runtime::Handle::try_current().map(|h| h.runtime_flavor()) {
+        Ok(tokio::runtime::RuntimeFlavor::MultiThread) => tokio::task::block_in_place(f),
+        _ => f(),
+    }
+}
+
 /// Opens the board's backend for joints `js` (indices into the config).
 fn open_board(opts: &AgentOptions, js: &[usize]) -> Result<Board, BackendError> {
     match &opts.backend {
@@ -240,12 +249,9 @@ fn open_board(opts: &AgentOptions, js: &[usize]) -> Result<Board, BackendError> 
             .map(|&j| SimBackend::new(&opts.cfg, j, opts.seed.wrapping_add(j as u64), opts.effects))
             .collect::<Result<Vec<_>, _>>()
             .map(Board::Sim),
-        BackendKind::Dynamixel(ports) => {
-            // Serial I/O blocks: off the async workers' backs.
-            tokio::task::block_in_place(|| DynamixelBoard::open(&opts.cfg, js, ports))
-                .map(|b| Board::Dynamixel(Box::new(b)))
-                .map_err(BackendError::from)
-        }
+        BackendKind::Dynamixel(ports) => blocking(|| DynamixelBoard::open(&opts.cfg, js, ports))
+            .map(|b| Board::Dynamixel(Box::new(b)))
+            .map_err(BackendError::from),
     }
 }
 
@@ -259,7 +265,7 @@ async fn fault(
 ) -> AgentError {
     let mut text = format!("fault: {e}");
     if let Some(b) = board {
-        let failed = tokio::task::block_in_place(|| b.safe_state());
+        let failed = blocking(|| b.safe_state());
         text.push_str(if failed.is_empty() {
             "; torque off"
         } else {
@@ -343,7 +349,7 @@ pub async fn run(
     if let Err(e) = result {
         return Err(fault(&session, &mut served, Some(&mut board), e).await);
     }
-    let failed = tokio::task::block_in_place(|| board.safe_state());
+    let failed = blocking(|| board.safe_state());
     let mut reports = Vec::new();
     for mut joint in served {
         let text = match (&board, failed.is_empty()) {
@@ -413,7 +419,7 @@ async fn sample_loop(
             let t_acq = t * period_ns;
             let t_world = t_acq.saturating_sub(opts.start_ns) as f64 * 1e-9;
             let readings = if hardware {
-                tokio::task::block_in_place(|| board.read(t_world, dt))?
+                blocking(|| board.read(t_world, dt))?
             } else {
                 board.read(t_world, dt)?
             };
