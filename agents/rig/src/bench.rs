@@ -378,10 +378,7 @@ fn latency(a: &LatencyArgs) -> Result<(), CliError> {
     if a.pings == 0 {
         return Err(CliError::Invalid("--pings: at least one round trip".into()));
     }
-    let cfg = match &a.config {
-        Some(p) => rig_config::load(p)?,
-        None => rig_config::examples::load("parallel")?,
-    };
+    let cfg = crate::config::load_or_parallel(&a.config)?;
     // The ping payload is a real encoded sample, so both figures move the same bytes.
     let payload = encode(&JointSample {
         joint: 0,

@@ -15,13 +15,6 @@ use serde_json::json;
 
 use crate::error::CliError;
 
-fn load(config: &Option<PathBuf>) -> Result<RigConfig, CliError> {
-    Ok(match config {
-        Some(p) => rig_config::load(p)?,
-        None => rig_config::examples::load("parallel")?,
-    })
-}
-
 fn joints(cfg: &RigConfig, names: &[String]) -> Result<Vec<usize>, CliError> {
     if names.is_empty() {
         return Ok((0..cfg.joints.len()).collect());
@@ -56,7 +49,7 @@ pub struct VirtualArgs {
 }
 
 pub fn virtual_board(a: &VirtualArgs) -> Result<(), CliError> {
-    let cfg = load(&a.config)?;
+    let cfg = crate::config::load_or_parallel(&a.config)?;
     let js = joints(&cfg, &a.joint)?;
     let board = VirtualBoard::start(&cfg, &js, a.start_ns.unwrap_or_else(now_ns), a.seed)
         .map_err(|e| CliError::Unsupported(e.to_string()))?;
@@ -117,7 +110,7 @@ pub struct BusArgs {
 }
 
 pub fn bench_bus(a: &BusArgs) -> Result<(), CliError> {
-    let cfg = load(&a.config)?;
+    let cfg = crate::config::load_or_parallel(&a.config)?;
     let js = joints(&cfg, &a.joint)?;
     let fail = |e: rig_joint::hardware::HardwareError| CliError::Unsupported(e.to_string());
     let (virt, ports) = match (&a.bus, &a.bridge) {

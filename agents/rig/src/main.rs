@@ -27,6 +27,7 @@
 mod allocate;
 mod bench;
 mod board;
+mod config;
 mod error;
 mod hosts;
 mod identify;

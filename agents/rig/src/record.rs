@@ -60,15 +60,8 @@ pub struct RecordArgs {
     duration: Option<f64>,
 }
 
-fn load(config: &Option<PathBuf>) -> Result<rig_config::RigConfig, CliError> {
-    Ok(match config {
-        Some(p) => rig_config::load(p)?,
-        None => rig_config::examples::load("parallel")?,
-    })
-}
-
 pub fn record(a: &RecordArgs) -> Result<(), CliError> {
-    let cfg = load(&a.config)?;
+    let cfg = crate::config::load_or_parallel(&a.config)?;
     let rt = tokio::runtime::Builder::new_multi_thread()
         .worker_threads(2)
         .enable_all()
@@ -211,7 +204,7 @@ pub struct ReplayArgs {
 }
 
 pub fn replay(a: &ReplayArgs) -> Result<(), CliError> {
-    let cfg = load(&a.config)?;
+    let cfg = crate::config::load_or_parallel(&a.config)?;
     let (msgs, truncated) = read_all(&a.file)?;
     if truncated {
         eprintln!(

@@ -156,10 +156,7 @@ impl Watch {
 }
 
 pub fn run(args: &Args) -> Result<(), CliError> {
-    let cfg = match &args.config {
-        Some(p) => rig_config::load(p)?,
-        None => rig_config::examples::load("parallel")?,
-    };
+    let cfg = crate::config::load_or_parallel(&args.config)?;
     let rt = tokio::runtime::Builder::new_multi_thread()
         .worker_threads(2)
         .enable_all()

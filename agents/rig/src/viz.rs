@@ -150,10 +150,7 @@ pub struct Args {
 }
 
 pub fn run(a: &Args) -> Result<(), CliError> {
-    let cfg = match &a.config {
-        Some(p) => rig_config::load(p)?,
-        None => rig_config::examples::load("parallel")?,
-    };
+    let cfg = crate::config::load_or_parallel(&a.config)?;
     let (zenoh, url) = split_connect(&a.connect);
     let Some(sink) = a.sink.sink(url, &cfg, true) else {
         return Err(CliError::Unsupported("no Rerun sink".into()));
