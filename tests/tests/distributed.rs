@@ -6,7 +6,7 @@
 #![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)]
 
 mod common;
-use common::{Proc, bin, free_port, rt, s, serial, spawn};
+use common::{Proc, bin, config, free_port, rt, s, serial, spawn};
 
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
@@ -15,12 +15,8 @@ use std::time::{Duration, Instant};
 
 use rig_joint::backend::{WORLD_STROKE_M, WORLD_STROKE_S};
 use rig_protocol::*;
-use rig_runtime::{NetOverrides, now_ns, open};
+use rig_runtime::now_ns;
 use rig_sim::world::StrokeWorld;
-
-fn config() -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR")).join("../rig-config/examples/parallel.toml")
-}
 
 fn joint(name: &str, hub: &str, start_ns: u64) -> Proc {
     joint_linked(name, &[hub], start_ns)
@@ -58,16 +54,7 @@ fn host(role: &str, hub: &str) -> Proc {
 }
 
 async fn session(hub: &str) -> rig_runtime::zenoh::Session {
-    let cfg = rig_config::load(&config()).unwrap();
-    open(
-        &cfg.zenoh,
-        &NetOverrides {
-            listen: vec![],
-            connect: vec![hub.to_string()],
-        },
-    )
-    .await
-    .unwrap()
+    common::session(&[], &[hub]).await
 }
 
 #[test]

@@ -5,10 +5,9 @@
 #![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)]
 
 mod common;
-use common::{bin, free_port, rt, s, serial, spawn};
+use common::{bin, config, free_port, rt, s, serial, spawn};
 
 use std::collections::BTreeMap;
-use std::path::{Path, PathBuf};
 use std::process::Command;
 use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant};
@@ -17,7 +16,7 @@ use rig_dynamixel::models::{AX_12A, XH540_W150};
 use rig_dynamixel::virtual_bus::{VirtualBus, VirtualServo};
 use rig_joint::virtual_board::VirtualBoard;
 use rig_protocol::*;
-use rig_runtime::{NetOverrides, now_ns, open};
+use rig_runtime::now_ns;
 
 #[test]
 fn rig_scan_lists_the_virtual_servos_of_each_protocol_as_json() {
@@ -67,21 +66,8 @@ fn rig_scan_lists_the_virtual_servos_of_each_protocol_as_json() {
 
 // ---- rig-joint's dynamixel backend against a virtual board fed by the simulated plant ----
 
-fn config() -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR")).join("../rig-config/examples/parallel.toml")
-}
-
 async fn session(hub: &str) -> rig_runtime::zenoh::Session {
-    let cfg = rig_config::load(&config()).unwrap();
-    open(
-        &cfg.zenoh,
-        &NetOverrides {
-            listen: vec![hub.to_string()],
-            connect: vec![],
-        },
-    )
-    .await
-    .unwrap()
+    common::session(&[hub], &[]).await
 }
 
 /// End-effector force estimates [N] by world time [ms], from one rig run: the estimator host

@@ -67,3 +67,23 @@ pub fn rt() -> tokio::runtime::Runtime {
         .build()
         .unwrap()
 }
+
+/// The example parallel robot's config file.
+pub fn config() -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("../rig-config/examples/parallel.toml")
+}
+
+/// A Zenoh session of the example rig that listens on or connects to these endpoints.
+pub async fn session(listen: &[&str], connect: &[&str]) -> rig_runtime::zenoh::Session {
+    let cfg = rig_config::load(&config()).unwrap();
+    let own = |v: &[&str]| v.iter().map(|e| e.to_string()).collect();
+    rig_runtime::open(
+        &cfg.zenoh,
+        &rig_runtime::NetOverrides {
+            listen: own(listen),
+            connect: own(connect),
+        },
+    )
+    .await
+    .unwrap()
+}
