@@ -102,8 +102,8 @@ pub struct BusArgs {
     #[arg(long, value_name = "PATH")]
     bridge: Option<PathBuf>,
     /// Read cycles timed (after 100 warm-up cycles)
-    #[arg(long, default_value_t = 5000)]
-    cycles: usize,
+    #[arg(long, default_value_t = 5000, value_parser = clap::value_parser!(u32).range(1..))]
+    cycles: u32,
     /// Print one JSON object instead of the table
     #[arg(long)]
     json: bool,
@@ -136,8 +136,8 @@ pub fn bench_bus(a: &BusArgs) -> Result<(), CliError> {
     for _ in 0..100 {
         board.read(period).map_err(fail)?;
     }
-    let pb = crate::progress::bar(a.cycles as u64, "bus cycles");
-    let mut us = Vec::with_capacity(a.cycles);
+    let pb = crate::progress::bar(u64::from(a.cycles), "bus cycles");
+    let mut us = Vec::with_capacity(a.cycles as usize);
     let t0 = Instant::now();
     for _ in 0..a.cycles {
         let t = Instant::now();
