@@ -6,7 +6,7 @@
 //! |---|---|---|
 //! | Coulomb friction | `coulomb_friction_nm` | adds F_c·sgn(ẋ) to the joint torque (x: deflection for a lever joint, link angle for AWAS) |
 //! | viscous friction | `viscous_friction_nms_per_rad` | adds b·ẋ to the joint torque |
-//! | backlash | `backlash_rad` | free play of this total width between the motor and the spring |
+//! | backlash | `backlash_rad` | a gap of this total width in series with the spring: the spring sees the deflection through a dead zone (unloaded inside the gap) |
 //! | sensor delay | `sensor_delay_s` | the torque sensor lags the encoders (whole samples) |
 //! | offsets | `encoder_offset_rad`, `torque_offset_nm` | constant biases of the deflection encoder and torque sensor |
 //! | offset jump | `offset_jump_at_s`, `offset_jump_rad` | the encoder slips by this much at this time (a mount slipping) |

@@ -67,31 +67,26 @@ impl DelayLine {
     }
 }
 
-/// Backlash (play) of total width `width`: the output follows the input only once the input
-/// has crossed the play band around it.
+/// Backlash: a gap of total width `width` in series with the spring. The deflection measured
+/// across gap and spring is `x`; the spring sees sgn x·max(|x| − width/2, 0): inside the gap
+/// it is unloaded (it relaxes to rest), so there is no memory. (A play operator, which holds
+/// its output inside the band, would make the spring's loop run the other way round and give
+/// energy back: no passive gap does that.)
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Backlash {
     half: f64,
-    out: Option<f64>,
 }
 
 impl Backlash {
     pub fn new(width: f64) -> Self {
         Self {
             half: 0.5 * width.max(0.0),
-            out: None,
         }
     }
 
+    /// What the spring sees of the deflection `x`.
     pub fn update(&mut self, x: f64) -> f64 {
-        let y = match self.out {
-            None => x,
-            Some(y) if x > y + self.half => x - self.half,
-            Some(y) if x < y - self.half => x + self.half,
-            Some(y) => y,
-        };
-        self.out = Some(y);
-        y
+        (x.abs() - self.half).max(0.0) * x.signum()
     }
 }
 
@@ -121,9 +116,10 @@ mod tests {
         assert_eq!(out, vec![1.0, 1.0, 1.0, 2.0, 3.0]);
         let mut bl = Backlash::new(0.2);
         assert_eq!(bl.update(0.0), 0.0);
-        assert_eq!(bl.update(0.05), 0.0); // inside the play
-        assert!((bl.update(0.3) - 0.2).abs() < 1e-15); // dragged at the edge
-        assert!((bl.update(0.25) - 0.2).abs() < 1e-15); // reversing: play again
-        assert!((bl.update(0.0) - 0.1).abs() < 1e-15);
+        assert_eq!(bl.update(0.05), 0.0); // inside the gap: the spring is unloaded
+        assert!((bl.update(0.3) - 0.2).abs() < 1e-15); // beyond it by 0.2
+        assert!((bl.update(0.25) - 0.15).abs() < 1e-15); // no memory: the same on the way back
+        assert_eq!(bl.update(-0.08), 0.0);
+        assert!((bl.update(-0.35) + 0.25).abs() < 1e-15);
     }
 }
