@@ -5,19 +5,21 @@ import re
 import sys
 
 SHORT = {
-    "hysteresis": lambda p: f"hysteresis (±{p['loop_half_height_nm']:.2f} N·m)",
+    "hysteresis": lambda p: f"hysteresis (±{p['loop_half_height_nm']:.2f} N·m, {p['operators']:.0f} stops)",
     "coulomb_friction": lambda p: f"coulomb_friction ({p['friction_nm']:.2f} N·m)",
     "viscous_friction": lambda p: f"viscous_friction ({p['damping_nms_per_rad']:.3g} N·m·s/rad)",
     "backlash": lambda p: f"backlash ({p['width_rad'] * 1e3:.2f} mrad)",
     "hard_stop": lambda p: f"hard_stop (from {p['onset_rad'] * 1e3:.2f} mrad)",
     "sensor_delay": lambda p: f"sensor_delay ({p['delay_s'] * 1e3:.1f} ms)",
-    "offset": lambda p: "offset ("
+    "offset": lambda p: f"offset on the {p.get('on', 'torque')} ("
     + ", ".join(
         ([f"{p['bias_nm']:+.2f} N·m"] if "bias_nm" in p else [])
+        + ([f"{p['bias_rad'] * 1e3:+.2f} mrad"] if "bias_rad" in p else [])
+        + ([f"jump {p['jump_rad'] * 1e3:+.2f} mrad at {p['jump_at_s']:.1f} s"] if "jump_rad" in p else [])
         + ([f"jump {p['jump_nm']:+.2f} N·m at {p['jump_at_s']:.1f} s"] if "jump_nm" in p else [])
     )
     + ")",
-    "stiffness_drift": lambda p: "stiffness_drift",
+    "stiffness_drift": lambda p: f"stiffness_drift ({100 * p['stiffness_change_over_run']:+.1f} % over the run)",
     "periodic_ripple": lambda p: f"periodic_ripple ({p['amplitude_nm']:.2f} N·m per {p['period_rad'] * 1e3:.2f} mrad)",
     "geometric_stiffness": lambda p: "geometric_stiffness",
     "gravity": lambda p: "gravity",
@@ -40,9 +42,17 @@ for line in sys.stdin:
     bias = max((abs(b["mean_residual_nm"]) for b in r["bias"]), default=0.0)
     steps = sum(int(n.split()[1]) for n in r["notes"] if n.startswith("steps:"))
     lag = next((e["params"]["delay_s"] for e in r["effects"] if e["name"] == "sensor_delay"), None)
-    rows.append((spring, amp, fit, held, k, r["before"]["rmse"], r["after"]["rmse"], effects, bias, steps, lag, r["residual"]["white"]))
+    tare = "; ".join(f"{t['torque_zero']:+.3f} N·m, {t['deflection_zero'] * 1e3:+.2f} mrad" for t in r["tare"]) if isinstance(r["tare"], list) and r["tare"] else "none"
+    rows.append((spring, amp, fit, held, k, r["before"]["rmse"], r["tared"]["rmse"], r["after"]["rmse"], effects, bias, steps, tare))
 
-print("| spring | T [N·m] | fit / held-out test | k linear [N·m/rad] | RMSE before [N·m] | after [N·m] | −% | effects added (held-out RMSE gain, N·m) | held-out bias [N·m] | torque steps | residual white |")
-print("|---|---|---|---|---|---|---|---|---|---|---|")
-for s, a, f, h, k, b, af, e, bias, steps, lag, white in sorted(rows):
-    print(f"| {s} | {a:g} | {f} / {h} | {k:.4g} | {b:.3f} | {af:.3f} | {100 * (1 - af / b):.0f} | {e} | {bias:.3f} | {steps} | {'yes' if white else 'no'} |")
+print("| spring | T [N·m] | fit / held-out test | k linear [N·m/rad] | RMSE before [N·m] | tared [N·m] | after [N·m] | before/after | effects added (held-out RMSE gain, N·m) | held-out bias [N·m] | torque steps | tare (fit file; held-out file) |")
+print("|---|---|---|---|---|---|---|---|---|---|---|---|")
+ratios = []
+for s, a, f, h, k, b, t, af, e, bias, steps, tare in sorted(rows):
+    ratios.append(b / af)
+    print(f"| {s} | {a:g} | {f} / {h} | {k:.4g} | {b:.3f} | {t:.3f} | {af:.3f} | {b / af:.2f} | {e} | {bias:.3f} | {steps} | {tare} |")
+ratios.sort()
+n = len(ratios)
+median = ratios[n // 2] if n % 2 else 0.5 * (ratios[n // 2 - 1] + ratios[n // 2])
+print()
+print(f"Median before/after over {n} pairs: {median:.2f}; smallest {ratios[0]:.2f}.")

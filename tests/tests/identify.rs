@@ -1,7 +1,8 @@
 //! `rig identify` on simulated data with an effect the declared model lacks (the simulator's
 //! injectable effects, which no config declares): for each, the identify step names it and
 //! at least halves the held-out RMSE; on clean data it adds nothing. End to end: `rig sim`
-//! writes the CSV, `rig identify` reads it and writes the report.
+//! writes the CSV, `rig identify` reads it and writes the report. (Data that shares no code
+//! with the simulator or the library: `agents/model/tests/identify_independent.rs`.)
 
 #![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)]
 
@@ -184,6 +185,7 @@ fn restoring_model_finds_a_torque_offset() {
         &[],
     );
     finds(&v, "offset");
+    assert_eq!(v["effects"][0]["params"]["on"], "torque", "{v:#}");
     let b = param(&v, "offset", "bias_nm");
     assert!((b - 0.02).abs() < 0.002, "{b}");
 }
@@ -202,6 +204,24 @@ fn restoring_model_finds_an_encoder_slip() {
     finds(&v, "offset");
     let at = param(&v, "offset", "jump_at_s");
     assert!((at - 13.0).abs() < 0.3, "{at}");
+    // The encoder slipped by 0.01 rad. At 0.06 rad paper B's lever is nearly linear, so the
+    // slip and a torque step of −k·0.01 fit alike (docs/IDENTIFY.md): either place is right,
+    // with the size it implies.
+    let k = v["base"]["after"]["stiffness_nm_per_rad"].as_f64().unwrap();
+    match v["effects"][0]["params"]["on"].as_str() {
+        Some("deflection") => {
+            let jump = param(&v, "offset", "jump_rad");
+            assert!((jump - 0.01).abs() < 0.001, "{jump}");
+        }
+        Some("torque") => {
+            let jump = param(&v, "offset", "jump_nm");
+            assert!(
+                (jump + k * 0.01).abs() < 0.15 * k * 0.01,
+                "{jump} vs k = {k}"
+            );
+        }
+        other => panic!("offset on {other:?}: {v:#}"),
+    }
 }
 
 #[test]
@@ -211,6 +231,9 @@ fn restoring_model_finds_stiffness_drift() {
         &[],
     );
     finds(&v, "stiffness_drift");
+    // The spring's stiffness scales by (1 + 0.01·t): the declared model's torque times that.
+    let c = param(&v, "stiffness_drift", "stiffness_rate_per_s");
+    assert!((c - 0.01).abs() < 0.001, "{c}");
 }
 
 #[test]
@@ -415,6 +438,16 @@ fn measured_spring_5_at_9_nm_linear_start_names_what_it_lacks_and_says_what_is_m
     assert!(n.iter().any(|e| e == "hysteresis"), "{n:?}");
     for e in v["effects"].as_array().unwrap() {
         assert!(e["gain_rmse"].as_f64().unwrap() > 0.0, "{e}");
+    }
+    // Both tests rest for their first 5 s (the data's README): each is tared from that rest.
+    let tare = v["tare"]
+        .as_array()
+        .expect("both files start at rest: a tare per file");
+    assert_eq!(tare.len(), 2, "{tare:?}");
+    for t in tare {
+        let w = t["window_s"].as_f64().unwrap();
+        assert!((4.0..5.5).contains(&w), "rest of {w} s: {t}");
+        assert!(t["torque_zero"].as_f64().unwrap().abs() < 0.2, "{t}");
     }
     // Irregular sampling is reported, and the messy parts are said, not hidden.
     assert_eq!(v["sampling"][0]["irregular"], true);

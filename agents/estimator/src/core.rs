@@ -18,7 +18,7 @@ use std::collections::BTreeMap;
 use rig_config::{JointKind, RigConfig, Topology};
 use rig_model::estimator::{JointReadings, RobotEstimator};
 use rig_model::hysteresis::RestoringTorqueModel;
-use rig_model::identify::monitor::ResidualMonitor;
+use rig_model::monitor::ResidualMonitor;
 use rig_model::observer::{DecoupledObserver, ImpedanceSample};
 use rig_protocol::{
     EeEstimate, JointEstimate, JointSample, JointState, JointStatus, StiffnessTriple,

@@ -14,6 +14,7 @@
 //! | [`estimator`] | joint samples → torques, end-effector force, K_uu (sans I/O) | paper B §3–4 |
 //! | [`allocation`] | bounded least squares for joint stiffnesses, tie-break, pivots | paper B §4.3 |
 //! | [`identify`] | residual → missing effect → augmented model, on held-out data | MODEL.md §6 |
+//! | [`monitor`] | the live residual monitor of a joint with a torque sensor | MODEL.md §6 |
 //! | [`pchip`] | monotone C¹ interpolation (parameters smooth in d) | — |
 
 pub mod allocation;
@@ -22,6 +23,7 @@ pub mod estimator;
 pub mod hysteresis;
 pub mod identify;
 pub mod lever;
+pub mod monitor;
 pub mod observer;
 pub mod pchip;
 pub mod planar;

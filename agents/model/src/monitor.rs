@@ -7,9 +7,9 @@
 //! most of the residual: structure has appeared. `rig identify` then does the full job
 //! offline.
 
-use super::Effect;
-use super::signals::rate_sign;
-use super::stats::{combine, least_squares};
+use crate::identify::Effect;
+use crate::identify::signals::rate_sign;
+use crate::identify::stats::{combine, least_squares};
 
 /// What the monitor says about one joint.
 #[derive(Debug, Clone, PartialEq)]

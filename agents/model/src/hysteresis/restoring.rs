@@ -228,6 +228,8 @@ pub struct RestoringTorqueModel {
     vertex: (f64, f64),
     tau_at_extreme: f64,
     tau: f64,
+    /// The parameters at the last pivot position seen.
+    params_at: Option<(f64, RestoringParams)>,
 }
 
 impl RestoringTorqueModel {
@@ -241,6 +243,7 @@ impl RestoringTorqueModel {
             vertex: (0.0, 0.0),
             tau_at_extreme: 0.0,
             tau: 0.0,
+            params_at: None,
         }
     }
 
@@ -283,7 +286,16 @@ impl RestoringTorqueModel {
         if !phi.is_finite() || !d.is_finite() {
             return self.tau;
         }
-        let p = self.curve.at(d);
+        // The pivot moves slowly, often not at all: evaluate the curve (two exponentials and
+        // four interpolations) only when d changes.
+        let p = match self.params_at {
+            Some((at, p)) if at == d => p,
+            _ => {
+                let p = self.curve.at(d);
+                self.params_at = Some((d, p));
+                p
+            }
+        };
         let Some(det) = self.detector.as_mut() else {
             // Virgin state: start on the centre line between the envelopes.
             self.detector = Some(ReversalDetector::new(self.dead_band, phi));

@@ -1,11 +1,21 @@
-//! The library of candidate effects (MODEL.md §6): each has a physical meaning, the model
-//! (joint torque or link equation) it applies to, its shape parameter searched on a grid, and
-//! the feature columns it adds to the linear-in-parameters prediction.
+//! The library of candidate effects (MODEL.md §6.1). Each is a change to the plant at a
+//! physical place, and its prediction is the declared model evaluated on the changed plant:
+//!
+//! - on the **inputs** the declared model sees (a sensor delay shifts them in time, backlash
+//!   passes the deflection through a dead zone, an encoder offset shifts it — the last
+//!   linearised through the declared model's own slope dτ̂/dx, exact for a linear spring);
+//! - on the **torque** (a torque-sensor offset, friction, a hard stop, gravity, ripple);
+//! - on the **spring** (hysteresis as friction inside it, a drift of its stiffness scaling
+//!   the declared model's elastic torque).
+//!
+//! Passive effects keep their sign: friction and hysteresis dissipate (loading above
+//! unloading), a stop stiffens. The fit enforces that as a bound, not as a filter afterwards.
 
 use std::fmt;
 
-use super::Signals;
-use super::signals::stop_operator;
+use super::model::Signals;
+use super::signals::{dead_zone, stop_operator_from};
+use super::stats::Bound;
 
 /// An effect a declared model may lack. Names are those of the report.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord, Hash)]
@@ -56,37 +66,37 @@ impl Effect {
     }
 
     /// What it means physically and how it enters the prediction (x: deflection φ for the
-    /// joint torque, link angle q for the link equation).
+    /// joint torque, link angle q for the link equation; τ̂ the declared model).
     pub fn meaning(self) -> &'static str {
         match self {
             Effect::Hysteresis => {
-                "friction in the spring and lever: a rate-independent loop, g·s_r(x) with s_r the stop operator of half-width r (loading above unloading)"
+                "friction in the spring or the lever: τ̂ + Σ wᵢ·s_rᵢ(x), a Prandtl–Ishlinskii sum of stop operators with wᵢ ≥ 0 (loading above unloading: it dissipates)"
             }
             Effect::CoulombFriction => {
-                "dry friction: F_c·sgn(ẋ), the direction taken from increments with a dead band"
+                "dry friction where the part moves: + F_c·sgn(ẋ), F_c ≥ 0, the direction from a centred rate with a dead band (0 at rest)"
             }
-            Effect::ViscousFriction => "viscous friction: b·ẋ",
+            Effect::ViscousFriction => "viscous friction where the part moves: + b·ẋ, b ≥ 0",
             Effect::Backlash => {
-                "free play between motor and spring: the spring sees the play operator of x, −k·s_r(x) (loading below unloading)"
+                "a gap of total width 2r in series with the spring: the spring is unloaded inside it, τ̂(sgn x·max(|x| − r, 0))"
             }
             Effect::HardStop => {
-                "the spring meets its stop: k_s·max(|x| − x_s, 0)·sgn(x), stiffening beyond x_s"
+                "the spring meets its stop: + k_s·max(|x| − x_s, 0)·sgn x, k_s ≥ 0 (stiffening beyond x_s)"
             }
             Effect::GeometricStiffness => {
                 "the lever's exact torque τ(φ, d) less its linearisation G(0)²k_α·φ (the k_α·α·dG/dφ term that k_φ = G²k_α drops)"
             }
             Effect::SensorDelay => {
-                "the torque sensor lags the encoders by δ > 0: the model is fed x(t − δ) (a torque that leads looks like k·δ·ẋ, viscous friction)"
+                "one sensor path lags the other: the declared model is fed x(t − δ); δ > 0 the torque lags the deflection, δ < 0 the deflection lags the torque"
             }
             Effect::Offset => {
-                "a sensor bias: constant, or jumping by j at t_j (an encoder or a spring mount slipping)"
+                "a sensor zero: on the torque sensor (+ c, and + c₂ after t_j when a mount slips) or on the deflection encoder (a zero slip: τ̂(x − s) after t_j)"
             }
             Effect::StiffnessDrift => {
-                "the spring rate drifts in time (temperature, creep): (dk/dt)·t·x"
+                "the spring's stiffness changes over the run (temperature, creep): the declared model's elastic torque × (1 + c·t)"
             }
-            Effect::Gravity => "gravity on the link: m·g·l·sin(q + q₀)",
+            Effect::Gravity => "gravity on the link: + m·g·l·sin(q + q₀)",
             Effect::PeriodicRipple => {
-                "ripple periodic in the angle (gear teeth, cogging, encoder eccentricity): A·sin(2π·θ/P + ψ)"
+                "ripple periodic in the angle a part turns with (gear teeth, cogging, encoder eccentricity): + A·sin(2π·θ/P + ψ)"
             }
         }
     }
@@ -94,6 +104,11 @@ impl Effect {
     /// Parses a report name.
     pub fn from_name(s: &str) -> Option<Effect> {
         Effect::ALL.into_iter().find(|e| e.name() == s)
+    }
+
+    /// Whether it acts by changing the inputs the declared model sees (not by adding columns).
+    pub(crate) fn is_input(self) -> bool {
+        matches!(self, Effect::SensorDelay | Effect::Backlash)
     }
 }
 
@@ -103,120 +118,242 @@ impl fmt::Display for Effect {
     }
 }
 
-/// Sign a fitted coefficient must have for the effect to mean what it says.
+/// Which sensor an offset sits on.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub(crate) enum Sign {
-    Positive,
-    Negative,
-    Any,
+pub enum Place {
+    Torque,
+    Deflection,
 }
 
-/// One effect with its shape parameter fixed (delay, width, onset, jump time, period).
+impl Place {
+    pub fn name(self) -> &'static str {
+        match self {
+            Place::Torque => "torque",
+            Place::Deflection => "deflection",
+        }
+    }
+}
+
+/// One effect with its shape fixed: a delay [s], a gap or stop [rad], a jump time [s] (NaN:
+/// a constant offset), a period [rad], a loop's initial state (−1, 0, +1); NaN when none.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Shaped {
     pub effect: Effect,
-    /// The shape parameter; its unit depends on the effect (s, rad); NaN when it has none.
     pub shape: f64,
+    /// For offsets: which sensor.
+    pub on: Place,
+    /// For an encoder offset: the correction δ the declared model's input gets, x + δ after
+    /// t_j [rad]. NaN while it is searched (then it is a column linearised through the
+    /// model's slope); once known, the model is replayed on the corrected input.
+    pub size: f64,
 }
 
 impl Shaped {
-    /// Feature columns over the signals (the delay adds none: it changes the signals).
-    pub(crate) fn columns(&self, s: &Signals) -> Vec<Vec<f64>> {
-        let x = &s.x;
+    pub(crate) fn new(effect: Effect, shape: f64) -> Self {
+        Self {
+            effect,
+            shape,
+            on: Place::Torque,
+            size: f64::NAN,
+        }
+    }
+
+    /// Whether it acts by changing the inputs the declared model sees (a lag, a gap, an
+    /// encoder offset of known size) rather than by adding columns.
+    pub(crate) fn is_input(&self) -> bool {
+        self.effect.is_input() || (self.on == Place::Deflection && self.size.is_finite())
+    }
+
+    /// Feature columns with the sign each coefficient must keep (input effects add none:
+    /// they change the signals).
+    pub(crate) fn columns(&self, s: &Signals) -> Vec<(Vec<f64>, Bound)> {
+        let xs = &s.xs;
         let r = self.shape;
+        let step = |tj: f64| -> Vec<f64> { s.t_rel.iter().map(|&t| f64::from(t >= tj)).collect() };
         match self.effect {
-            Effect::Hysteresis | Effect::Backlash => {
-                vec![s.per_run(|a, b| stop_operator(&x[a..b], r))]
-            }
-            Effect::CoulombFriction => vec![s.dir.clone()],
-            Effect::ViscousFriction => vec![s.xdot.clone()],
-            Effect::HardStop => vec![
-                x.iter()
-                    .map(|v| (v.abs() - r).max(0.0) * v.signum())
-                    .collect(),
-            ],
+            Effect::Hysteresis => s
+                .widths
+                .iter()
+                .map(|&w| {
+                    (
+                        s.per_run(|a, b| stop_operator_from(&xs[a..b], w, r * w)),
+                        Bound::NonNegative,
+                    )
+                })
+                .collect(),
+            Effect::CoulombFriction => vec![(s.dir.clone(), Bound::NonNegative)],
+            Effect::ViscousFriction => vec![(s.xdot.clone(), Bound::NonNegative)],
+            Effect::HardStop => vec![(
+                xs.iter().map(|&v| dead_zone(v, r)).collect(),
+                Bound::NonNegative,
+            )],
             Effect::GeometricStiffness => match &s.lever {
-                Some(vsa) => vec![
-                    x.iter()
+                Some(vsa) => vec![(
+                    xs.iter()
                         .zip(&s.d)
                         .map(|(&p, &d)| vsa.torque(p, d) - vsa.stiffness_at_rest(d) * p)
                         .collect(),
-                ],
+                    Bound::Free,
+                )],
                 None => vec![],
             },
-            Effect::SensorDelay => vec![],
+            Effect::SensorDelay | Effect::Backlash => vec![],
             Effect::Offset => {
                 let mut cols = Vec::new();
-                if !s.base_has_intercept {
-                    cols.push(vec![1.0; x.len()]);
-                }
-                if r.is_finite() {
-                    cols.push(s.t_rel.iter().map(|&t| f64::from(t >= r)).collect());
+                match (self.on, &s.slope) {
+                    // Known size: it is in the signals' input already.
+                    (Place::Deflection, _) if self.size.is_finite() => {}
+                    (Place::Deflection, Some(slope)) => {
+                        // τ̂(x + δ·1[t ≥ t_j]) ≈ τ̂(x) + δ·1[t ≥ t_j]·dτ̂/dx.
+                        let h = if r.is_finite() {
+                            step(r)
+                        } else {
+                            vec![1.0; xs.len()]
+                        };
+                        cols.push((
+                            h.iter().zip(slope).map(|(h, k)| h * k).collect(),
+                            Bound::Free,
+                        ));
+                    }
+                    _ => {
+                        if !s.base_has_intercept {
+                            cols.push((vec![1.0; xs.len()], Bound::Free));
+                        }
+                        if r.is_finite() {
+                            cols.push((step(r), Bound::Free));
+                        }
+                    }
                 }
                 cols
             }
-            Effect::StiffnessDrift => vec![x.iter().zip(&s.t_rel).map(|(x, t)| x * t).collect()],
+            Effect::StiffnessDrift => s
+                .elastic
+                .iter()
+                .map(|c| {
+                    (
+                        c.iter().zip(&s.t_rel).map(|(v, t)| v * t).collect(),
+                        Bound::Free,
+                    )
+                })
+                .collect(),
             Effect::Gravity => match &s.q {
                 Some(q) => vec![
-                    q.iter().map(|q| q.sin()).collect(),
-                    q.iter().map(|q| q.cos()).collect(),
+                    (q.iter().map(|q| q.sin()).collect(), Bound::Free),
+                    (q.iter().map(|q| q.cos()).collect(), Bound::Free),
                 ],
                 None => vec![],
             },
             Effect::PeriodicRipple => {
                 let w = std::f64::consts::TAU / r;
                 vec![
-                    s.angle.iter().map(|a| (w * a).sin()).collect(),
-                    s.angle.iter().map(|a| (w * a).cos()).collect(),
+                    (s.angle.iter().map(|a| (w * a).sin()).collect(), Bound::Free),
+                    (s.angle.iter().map(|a| (w * a).cos()).collect(), Bound::Free),
                 ]
             }
         }
     }
 
-    /// The sign the first coefficient must have.
-    pub(crate) fn sign(&self) -> Sign {
+    /// Parameters the selection criterion charges for: the fitted coefficients that are not
+    /// held at zero by their bound, plus one for a searched shape (`joint`: a joint-torque
+    /// model, not the link equation).
+    pub(crate) fn parameters(&self, coefs: &[f64], joint: bool) -> usize {
+        let fitted = coefs.iter().filter(|c| **c != 0.0).count();
+        let shaped = usize::from(self.shape.is_finite() && self.effect != Effect::Hysteresis);
         match self.effect {
-            Effect::Hysteresis | Effect::CoulombFriction | Effect::ViscousFriction => {
-                Sign::Positive
-            }
-            Effect::HardStop => Sign::Positive,
-            Effect::Backlash => Sign::Negative,
-            _ => Sign::Any,
+            // A torque that leads the deflection is, to first order in δ, viscous friction
+            // k·δ·ẋ; in the link equation either lag is, to first order, a change of the
+            // inertia (N·δ·q̈). Such a delay is charged one parameter more, so that it is
+            // named only where the higher orders show (the simpler claim wins a tie).
+            Effect::SensorDelay if self.shape < 0.0 || !joint => 2,
+            Effect::SensorDelay | Effect::Backlash => 1,
+            // A slip part-way: δ and t_j. A constant encoder offset equals a torque offset k·δ
+            // through a linear spring: it is charged one parameter more, named only where the
+            // model's curvature tells them apart (a constant zero is the torque sensor's more
+            // often; a slip part-way, a mount's).
+            Effect::Offset if self.on == Place::Deflection => 2,
+            _ => (fitted + shaped).max(1),
         }
     }
 
-    /// Named parameters from the shape and the fitted coefficients of its columns.
-    pub(crate) fn params(&self, coefs: &[f64], has_intercept: bool) -> Vec<(&'static str, f64)> {
+    /// Named parameters from the shape and the fitted coefficients of its columns. `base`
+    /// are the declared model's coefficients (a scale or a stiffness, first).
+    pub(crate) fn params(
+        &self,
+        coefs: &[f64],
+        s: &Signals,
+        base: &[f64],
+    ) -> Vec<(&'static str, f64)> {
         let c = |i: usize| coefs.get(i).copied().unwrap_or(f64::NAN);
+        let b0 = base.first().copied().unwrap_or(f64::NAN);
         match self.effect {
-            Effect::Hysteresis => vec![
-                ("half_width_rad", self.shape),
-                ("gain_nm_per_rad", c(0)),
-                ("loop_half_height_nm", c(0) * self.shape),
-            ],
+            Effect::Hysteresis => {
+                // Half the gap between loading and unloading branches of a full loop: Σ wᵢ·rᵢ.
+                let h: f64 = s.widths.iter().zip(coefs).map(|(w, c)| w * c).sum();
+                let active = coefs.iter().filter(|c| **c > 0.0).count() as f64;
+                let (mut lo, mut hi) = (f64::INFINITY, 0.0f64);
+                for (w, c) in s.widths.iter().zip(coefs) {
+                    if *c > 0.0 {
+                        lo = lo.min(*w);
+                        hi = hi.max(*w);
+                    }
+                }
+                vec![
+                    ("loop_half_height_nm", h),
+                    ("operators", active),
+                    (
+                        "narrowest_half_width_rad",
+                        if lo.is_finite() { lo } else { 0.0 },
+                    ),
+                    ("widest_half_width_rad", hi),
+                    ("initial_state", self.shape),
+                ]
+            }
             Effect::Backlash => vec![
                 ("width_rad", 2.0 * self.shape),
-                ("spring_rate_nm_per_rad", -c(0)),
+                ("half_width_rad", self.shape),
             ],
             Effect::CoulombFriction => vec![("friction_nm", c(0))],
             Effect::ViscousFriction => vec![("damping_nms_per_rad", c(0))],
             Effect::HardStop => vec![("onset_rad", self.shape), ("stop_rate_nm_per_rad", c(0))],
             Effect::GeometricStiffness => vec![("scale", c(0))],
             Effect::SensorDelay => vec![("delay_s", self.shape)],
-            Effect::Offset => {
-                let mut p = Vec::new();
-                let mut i = 0;
-                if !has_intercept {
-                    p.push(("bias_nm", c(0)));
-                    i = 1;
+            Effect::Offset => match self.on {
+                Place::Deflection => {
+                    // The model is fed x + δ after t_j (or, while searched, the column
+                    // 1[t ≥ t_j]·dτ̂/dx of the unscaled model: δ = c / scale). The encoder
+                    // read x + s, s = −δ.
+                    let shift = if self.size.is_finite() {
+                        -self.size
+                    } else {
+                        -c(0) / b0
+                    };
+                    if self.shape.is_finite() {
+                        vec![("jump_rad", shift), ("jump_at_s", self.shape)]
+                    } else {
+                        vec![("bias_rad", shift)]
+                    }
                 }
-                if self.shape.is_finite() {
-                    p.push(("jump_nm", c(i)));
-                    p.push(("jump_at_s", self.shape));
+                Place::Torque => {
+                    let mut p = Vec::new();
+                    let mut i = 0;
+                    if !s.base_has_intercept {
+                        p.push(("bias_nm", c(0)));
+                        i = 1;
+                    }
+                    if self.shape.is_finite() {
+                        p.push(("jump_nm", c(i)));
+                        p.push(("jump_at_s", self.shape));
+                    }
+                    p
                 }
-                p
+            },
+            Effect::StiffnessDrift => {
+                // (1 + c·t)·τ̂_elastic: the column's coefficient over the elastic one.
+                vec![
+                    ("stiffness_rate_per_s", c(0) / b0),
+                    ("stiffness_change_over_run", c(0) / b0 * s.duration),
+                ]
             }
-            Effect::StiffnessDrift => vec![("stiffness_rate_nm_per_rad_s", c(0))],
             Effect::Gravity => vec![
                 ("mgl_nm", c(0).hypot(c(1))),
                 ("angle_offset_rad", c(1).atan2(c(0))),

@@ -2,27 +2,36 @@
 //! leaves (the residual), trace that to an effect the model lacks, add the effect, refit, and
 //! report the error before and after — always on data held out of the fit.
 //!
-//! The prediction is linear in its coefficients: the declared model's columns (the replayed
-//! restoring-torque model, or k·φ + c, or I·q̈ + N·q̇) plus, per added effect, its columns
-//! ([`effects`]). Shapes that are not linear (a delay, a play width, a jump time, a period)
-//! are searched on grids. Selection is forward and greedy: each round tries every candidate
-//! at every shape, fitting on part of the fit data and scoring on the rest (interleaved time
-//! blocks, never the held-out data); the best is added only if it lowers that validation
-//! error by at least [`Options::min_gain`]. So on data with nothing missing, nothing is
-//! added. The held-out data then gives every "before" and "after" figure.
+//! The phases, one file each:
+//!
+//! | phase | file |
+//! |---|---|
+//! | runs checked, tared at rest, concatenated; rows given roles | [`rows`] |
+//! | the declared model's columns on the (changed) inputs; bounded least squares | `model` |
+//! | the effects, each at its physical place (MODEL.md §6.1) | [`effects`] |
+//! | candidates and their grids; forward selection by a criterion with a known false-positive rate | `select` |
+//! | the held-out check, the residual's whiteness, correlations and loop orientation | `report` |
+//!
+//! The call contract: [`identify`] takes runs in SI units (checked: finite, increasing time,
+//! equal lengths), does no I/O, and returns every figure on held-out rows. `before` is the
+//! declared model on the data as given; `tared` after each run's zeros were taken at rest;
+//! `after` with the effects added. On data with nothing missing it adds nothing.
 
 pub mod effects;
-pub mod monitor;
+mod model;
+mod report;
+pub mod rows;
+mod select;
 pub mod signals;
 pub mod stats;
 
-use crate::hysteresis::{
-    FitOptions, FitSample, RestoringCurve, RestoringTorqueModel, fit_restoring,
-};
 use crate::lever::LeverVsa;
-use effects::Sign;
-pub use effects::{Effect, Shaped};
-use stats::{combine, least_squares, mae, mean, rmse};
+pub use effects::{Effect, Place, Shaped};
+use model::{Transform, base_params, fit, fit_restoring_on};
+pub use rows::Tare;
+use rows::{Problem, apply_tare, check_run};
+use select::Rows;
+use stats::{mae, rmse};
 use thiserror::Error;
 
 /// The declared model identification starts from.
@@ -92,8 +101,15 @@ pub struct Options {
     pub max_effects: usize,
     /// Largest sensor delay searched, either way [s].
     pub max_delay: f64,
-    /// Half-window of the local fits giving rates [s].
-    pub rate_window: f64,
+    /// Half-window of the local fits giving rates [s]; `None`: the narrowest of 10, 20, 40 and
+    /// 80 ms whose fit of the declared model (with the shape-free candidates) on the
+    /// validation blocks is within 30 % of the best (a narrow window passes the encoder's
+    /// quantisation into q̈, a wide one flattens fast motion; the joint models' torque does
+    /// not depend on rates, so for them it stays at 20 ms).
+    pub rate_window: Option<f64>,
+    /// Take each run's torque and deflection zeros from the rest it starts with (joint-torque
+    /// models; the link equation's torque at rest is gravity's, so it is never tared).
+    pub tare: bool,
 }
 
 impl Default for Options {
@@ -103,10 +119,11 @@ impl Default for Options {
             lever: None,
             dead_band: None,
             blocks: 12,
-            min_gain: 0.02,
+            min_gain: 0.05,
             max_effects: 6,
             max_delay: 0.1,
-            rate_window: 0.02,
+            rate_window: None,
+            tare: true,
         }
     }
 }
@@ -144,6 +161,8 @@ impl Errors {
 #[derive(Debug, Clone, PartialEq)]
 pub struct Found {
     pub effect: Effect,
+    /// For an offset: the sensor it sits on.
+    pub on: Option<Place>,
     pub params: Vec<(&'static str, f64)>,
     /// Held-out RMSE before this effect less after it (effects in the order added) [N·m].
     pub gain_rmse: f64,
@@ -182,6 +201,11 @@ pub struct Residual {
     pub cross: Vec<Correlation>,
     /// Cross-correlation curves (lag [s], ρ) per input, for plots.
     pub cross_curves: Vec<(&'static str, Vec<(f64, f64)>)>,
+    /// Loop orientation of the declared model's residual on the fit rows and of the final
+    /// held-out residual: ∮e·dx over ∮|dx|·rms(e), in [−1, 1]; > 0 dissipative (loading
+    /// above unloading), < 0 it gives energy back (a lag of the torque, or a sign error).
+    pub loop_before: f64,
+    pub loop_after: f64,
     /// Plain-language remarks on structure left unexplained.
     pub structure: Vec<String>,
 }
@@ -203,8 +227,15 @@ pub struct Identified {
     pub model: Declared,
     pub fit_samples: usize,
     pub holdout_samples: usize,
+    /// The declared model on the data as given.
     pub before: Errors,
+    /// The declared model after the tare (equal to `before` when nothing was tared).
+    pub tared: Errors,
     pub after: Errors,
+    /// Each run's zeros at rest (empty when the tare is off or does not apply).
+    pub tare: Vec<Tare>,
+    /// Why nothing was tared, when the tare was on but could not treat every run alike.
+    pub tare_note: Option<String>,
     /// The declared model's own parameters, before and after the effects were added.
     pub base_before: Vec<(&'static str, f64)>,
     pub base_after: Vec<(&'static str, f64)>,
@@ -230,257 +261,8 @@ pub enum Holdout<'a> {
     Blocks,
 }
 
-/// The role of a row.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-enum Role {
-    Train,
-    Validate,
-    Holdout,
-}
-
-/// Signals over all runs, concatenated, for one sensor delay.
-#[derive(Debug, Clone)]
-pub struct Signals {
-    /// Deflection φ (joint torque) or link angle q (link equation), delayed.
-    pub x: Vec<f64>,
-    pub xdot: Vec<f64>,
-    pub xddot: Vec<f64>,
-    pub dir: Vec<f64>,
-    /// Pivot position [m] (0 where absent).
-    pub d: Vec<f64>,
-    /// Link angle, when known.
-    pub q: Option<Vec<f64>>,
-    /// Angle a ripple is periodic in (q when known, else x).
-    pub angle: Vec<f64>,
-    /// Time since the run's start [s].
-    pub t_rel: Vec<f64>,
-    pub lever: Option<LeverVsa>,
-    pub base_has_intercept: bool,
-    /// Row ranges of the runs.
-    bounds: Vec<(usize, usize)>,
-    /// The declared model's columns.
-    base: Vec<Vec<f64>>,
-}
-
-impl Signals {
-    /// A column built run by run (stateful operators restart at each run).
-    pub(crate) fn per_run(&self, f: impl Fn(usize, usize) -> Vec<f64>) -> Vec<f64> {
-        let mut out = Vec::with_capacity(self.x.len());
-        for &(a, b) in &self.bounds {
-            out.extend(f(a, b));
-        }
-        out
-    }
-}
-
-/// Everything fixed across candidates: the runs, concatenated, and row roles.
-struct Problem<'a> {
-    runs: Vec<&'a Run>,
-    bounds: Vec<(usize, usize)>,
-    tau: Vec<f64>,
-    role: Vec<Role>,
-    opts: &'a Options,
-    dead_band: f64,
-    /// Quantisation step of the angle [rad] (0 when not quantised).
-    resolution: f64,
-    restoring: Option<RestoringCurve>,
-}
-
-impl Problem<'_> {
-    fn rows(&self, want: &[Role]) -> Vec<usize> {
-        (0..self.tau.len())
-            .filter(|&i| want.contains(&self.role[i]))
-            .collect()
-    }
-
-    /// The signals with the inputs delayed by `delay` [s].
-    fn signals(&self, delay: f64) -> Signals {
-        let joint = self.opts.model.is_joint();
-        let mut s = Signals {
-            x: vec![],
-            xdot: vec![],
-            xddot: vec![],
-            dir: vec![],
-            d: vec![],
-            q: None,
-            angle: vec![],
-            t_rel: vec![],
-            lever: self.opts.lever,
-            base_has_intercept: self.opts.model == Declared::Linear,
-            bounds: self.bounds.clone(),
-            base: vec![],
-        };
-        let has_q = self.runs.iter().all(|r| r.q.is_some());
-        let mut q_all = Vec::new();
-        for r in &self.runs {
-            let n = r.t.len();
-            let xs = if joint { r.phi.as_ref() } else { r.q.as_ref() };
-            let x = signals::shifted(&r.t, xs.map_or(&[][..], Vec::as_slice), delay);
-            let (v, a) = signals::local_rates(&r.t, &x, self.opts.rate_window);
-            s.dir.extend(signals::rate_sign(
-                &v,
-                0.5 * self.resolution / self.opts.rate_window,
-            ));
-            let d =
-                r.d.as_ref()
-                    .map_or(vec![0.0; n], |d| signals::shifted(&r.t, d, delay));
-            if has_q {
-                q_all.extend(signals::shifted(
-                    &r.t,
-                    r.q.as_ref().map_or(&[][..], Vec::as_slice),
-                    delay,
-                ));
-            }
-            let t0 = r.t[0];
-            s.t_rel.extend(r.t.iter().map(|t| t - t0));
-            s.x.extend(x);
-            s.xdot.extend(v);
-            s.xddot.extend(a);
-            s.d.extend(d);
-        }
-        s.angle = if has_q { q_all.clone() } else { s.x.clone() };
-        if has_q {
-            s.q = Some(q_all);
-        }
-        s.base = match self.opts.model {
-            Declared::Linear => vec![s.x.clone(), vec![1.0; s.x.len()]],
-            Declared::Link => vec![s.xddot.clone(), s.xdot.clone()],
-            Declared::Restoring => {
-                let Some(curve) = self.restoring.clone() else {
-                    return s;
-                };
-                vec![s.per_run(|a, b| {
-                    let mut m = RestoringTorqueModel::new(curve.clone(), self.dead_band);
-                    (a..b).map(|i| m.update(s.x[i], s.d[i])).collect()
-                })]
-            }
-        };
-        s
-    }
-}
-
-/// A model: the declared columns and the shaped effects, with fitted coefficients.
-struct Fitted {
-    coefs: Vec<f64>,
-    prediction: Vec<f64>,
-    /// Column count per part: base first, then each effect.
-    widths: Vec<usize>,
-}
-
-fn fit(s: &Signals, effects: &[Shaped], tau: &[f64], rows: &[usize]) -> Option<Fitted> {
-    let mut cols: Vec<Vec<f64>> = s.base.clone();
-    let mut widths = vec![s.base.len()];
-    for e in effects {
-        let c = e.columns(s);
-        widths.push(c.len());
-        cols.extend(c);
-    }
-    let refs: Vec<&[f64]> = cols.iter().map(|c| c.as_slice()).collect();
-    let coefs = least_squares(&refs, tau, rows)?;
-    let prediction = combine(&refs, &coefs, tau.len());
-    Some(Fitted {
-        coefs,
-        prediction,
-        widths,
-    })
-}
-
-impl Fitted {
-    /// Coefficients of part `k` (0: the declared model, then the effects in order).
-    fn part(&self, k: usize) -> &[f64] {
-        let start: usize = self.widths[..k].iter().sum();
-        &self.coefs[start..start + self.widths[k]]
-    }
-
-    fn error_on(&self, tau: &[f64], rows: &[usize]) -> f64 {
-        let e: Vec<f64> = rows.iter().map(|&i| tau[i] - self.prediction[i]).collect();
-        rmse(&e)
-    }
-}
-
-/// Checks a run's columns for the model; returns its length.
-fn check_run(r: &Run, model: Declared) -> Result<(), IdentifyError> {
-    let bad = |what: String| IdentifyError::Run {
-        run: r.name.clone(),
-        what,
-    };
-    let n = r.t.len();
-    if n < 20 {
-        return Err(bad(format!("{n} samples; at least 20 are needed")));
-    }
-    let need: &[(&str, Option<&Vec<f64>>)] = match model {
-        Declared::Link => &[("q", r.q.as_ref())],
-        _ => &[("phi", r.phi.as_ref())],
-    };
-    for (name, col) in need {
-        match col {
-            None => {
-                return Err(bad(format!(
-                    "the {} model needs a column {name}",
-                    model.name()
-                )));
-            }
-            Some(c) if c.len() != n => {
-                return Err(bad(format!(
-                    "column {name} has {} rows, t has {n}",
-                    c.len()
-                )));
-            }
-            _ => {}
-        }
-    }
-    if r.tau.len() != n {
-        return Err(bad(format!(
-            "column tau has {} rows, t has {n}",
-            r.tau.len()
-        )));
-    }
-    for (name, c) in [("d", r.d.as_ref()), ("q", r.q.as_ref())] {
-        if let Some(c) = c
-            && c.len() != n
-        {
-            return Err(bad(format!(
-                "column {name} has {} rows, t has {n}",
-                c.len()
-            )));
-        }
-    }
-    if let Some(i) = (1..n).find(|&i| r.t[i] <= r.t[i - 1]) {
-        return Err(bad(format!("time does not increase at row {i}")));
-    }
-    let cols = [
-        Some(&r.t),
-        Some(&r.tau),
-        r.phi.as_ref(),
-        r.d.as_ref(),
-        r.q.as_ref(),
-    ];
-    if cols
-        .iter()
-        .flatten()
-        .any(|c| c.iter().any(|v| !v.is_finite()))
-    {
-        return Err(bad("a value is not finite".into()));
-    }
-    Ok(())
-}
-
-/// The smallest nonzero step of a quantised signal (its resolution), or 0.
-fn resolution(x: &[f64]) -> f64 {
-    let mut steps: Vec<f64> = x
-        .windows(2)
-        .map(|w| (w[1] - w[0]).abs())
-        .filter(|v| *v > 1e-12)
-        .collect();
-    if steps.is_empty() {
-        return 0.0;
-    }
-    steps.sort_by(f64::total_cmp);
-    steps[steps.len() / 20]
-}
-
 /// Logarithmically spaced values from `lo` to `hi`.
-fn logspace(lo: f64, hi: f64, n: usize) -> Vec<f64> {
+pub(crate) fn logspace(lo: f64, hi: f64, n: usize) -> Vec<f64> {
     if !(lo > 0.0 && hi > lo) || n < 2 {
         return vec![];
     }
@@ -507,344 +289,166 @@ pub fn identify(
     for r in fit_runs.iter().chain(held) {
         check_run(r, opts.model)?;
     }
-    // Rows and roles.
-    let blocks = opts.blocks.max(4);
-    let mut runs: Vec<&Run> = Vec::new();
-    let (mut bounds, mut tau, mut role) = (Vec::new(), Vec::new(), Vec::new());
-    for (r, is_held) in fit_runs
-        .iter()
-        .map(|r| (r, false))
-        .chain(held.iter().map(|r| (r, true)))
-    {
-        let start = tau.len();
-        let (t0, t1) = (r.t[0], r.t[r.t.len() - 1]);
-        for &t in &r.t {
-            let b = (((t - t0) / (t1 - t0).max(1e-12)) * blocks as f64).min(blocks as f64 - 1.0)
-                as usize;
-            role.push(match (is_held, matches!(holdout, Holdout::Blocks), b % 4) {
-                (true, _, _) => Role::Holdout,
-                (false, true, 3) => Role::Holdout,
-                (false, _, 1) => Role::Validate,
-                _ => Role::Train,
-            });
-        }
-        tau.extend_from_slice(&r.tau);
-        bounds.push((start, tau.len()));
-        runs.push(r);
-    }
-    let joint = opts.model.is_joint();
-    let angle_of = |r: &Run| -> Vec<f64> {
-        if joint { r.phi.clone() } else { r.q.clone() }.unwrap_or_default()
-    };
-    let all_x: Vec<f64> = runs.iter().flat_map(|r| angle_of(r)).collect();
-    let res = runs
-        .iter()
-        .map(|r| resolution(&angle_of(r)))
-        .fold(f64::INFINITY, f64::min);
-    let dead_band = opts.dead_band.unwrap_or(if res.is_finite() && res > 0.0 {
-        3.0 * res
-    } else {
-        1e-6
-    });
-    let mut p = Problem {
-        runs,
-        bounds,
-        tau,
-        role,
-        opts,
-        dead_band,
-        resolution: if res.is_finite() { res } else { 0.0 },
-        restoring: None,
-    };
-    let train = p.rows(&[Role::Train]);
-    let validate = p.rows(&[Role::Validate]);
-    let fit_rows = p.rows(&[Role::Train, Role::Validate]);
-    let held_rows = p.rows(&[Role::Holdout]);
-    if train.is_empty() || validate.is_empty() || held_rows.is_empty() {
+
+    // The declared model on the data as given: the "before".
+    let mut raw = Problem::new(fit_runs, held, &holdout, opts);
+    let rows = Rows::of(&raw);
+    if rows.train.is_empty() || rows.validate.is_empty() || rows.held.is_empty() {
         return Err(IdentifyError::NoData);
     }
-    if opts.model == Declared::Restoring {
-        p.restoring = Some(fit_restoring_on(&p, &fit_rows, &p.tau, 0.0)?);
-    }
+    let window = select::rate_window(&mut raw, &rows, opts)?;
+    raw.set_rate_window(window);
+    let declared = |p: &mut Problem| -> Result<model::Fitted, IdentifyError> {
+        if p.model == Declared::Restoring {
+            p.restoring = Some(fit_restoring_on(
+                p,
+                &rows.fit,
+                &p.tau,
+                Transform::default(),
+            )?);
+        }
+        fit(&p.signals(Transform::default()), &[], &p.tau, &rows.fit).ok_or(IdentifyError::Solve)
+    };
+    let before = declared(&mut raw)?;
+    let base_before = base_params(opts.model, before.part(0), raw.restoring.as_ref());
+    let e_before = before.residual_on(&raw.tau, &rows.held);
 
-    // Candidates and their shape grids, from the fit data's ranges.
-    let fit_x: Vec<f64> = fit_rows.iter().map(|&i| all_x[i]).collect();
-    let x_max = fit_x.iter().fold(0.0f64, |m, v| m.max(v.abs()));
-    let x_range = fit_x.iter().cloned().fold(f64::NEG_INFINITY, f64::max)
-        - fit_x.iter().cloned().fold(f64::INFINITY, f64::min);
-    let dt = p
-        .runs
-        .iter()
-        .map(|r| signals::median_step(&r.t))
-        .fold(f64::INFINITY, f64::min);
+    // Tare: each run's zeros from the rest it starts with.
+    let (tare, tare_note) = if opts.tare && opts.model.is_joint() {
+        rows::tare(&raw.runs)
+    } else {
+        (vec![], None)
+    };
+    // The tare is every run's or none: run k's is tare[k], fit runs first.
+    let tared = |runs: &[Run], first: usize| -> Vec<Run> {
+        runs.iter()
+            .enumerate()
+            .map(|(k, r)| apply_tare(r, &tare[first + k]))
+            .collect()
+    };
+    let (mut p, base) = if tare.is_empty() {
+        (raw.clone(), before.clone())
+    } else {
+        let (fit_t, held_t) = (tared(fit_runs, 0), tared(held, fit_runs.len()));
+        let mut p = Problem::new(&fit_t, &held_t, &holdout, opts);
+        p.set_rate_window(window);
+        let base = declared(&mut p)?;
+        (p, base)
+    };
+    let declared_curve = p.restoring.clone();
+    let e_tared = base.residual_on(&p.tau, &rows.held);
+
+    // Candidates, then forward selection on the fit rows.
+    let dt = rows::sampling_step(&p.runs);
     let duration = p
         .runs
         .iter()
         .map(|r| r.t[r.t.len() - 1] - r.t[0])
         .fold(0.0f64, f64::max);
-    let has_q = p.runs.iter().all(|r| r.q.is_some());
-    let has_d = p.runs.iter().all(|r| r.d.is_some());
-    let q_all: Vec<f64> = p
-        .runs
-        .iter()
-        .flat_map(|r| r.q.clone().unwrap_or_default())
-        .collect();
-    let q_range = q_all.iter().cloned().fold(f64::NEG_INFINITY, f64::max)
-        - q_all.iter().cloned().fold(f64::INFINITY, f64::min);
-    let mut not_applicable: Vec<(Effect, &'static str)> = Vec::new();
-    let mut candidates: Vec<(Effect, Vec<f64>)> = Vec::new();
-    for e in Effect::ALL {
-        if opts.model.declares().contains(&e) {
-            continue;
-        }
-        let grid: Result<Vec<f64>, &'static str> = match (e, joint) {
-            // Hysteresis is gradual (a stop wider than the direction dead band: narrower is
-            // Coulomb friction); backlash may be as narrow as the encoder resolves.
-            (Effect::Hysteresis, true) => Ok(logspace(10.0 * dead_band, 0.25 * x_range, 16)),
-            (Effect::Backlash, true) => Ok(logspace(dead_band / 3.0, 0.25 * x_range, 20)),
-            (Effect::Hysteresis | Effect::Backlash | Effect::HardStop, false) => {
-                Err("a joint-torque effect; the link equation has no spring")
-            }
-            (Effect::GeometricStiffness, false) => Err("a joint-torque effect"),
-            (Effect::StiffnessDrift, false) => Err("the link equation has no spring"),
-            (Effect::HardStop, true) => Ok([0.5, 0.6, 0.7, 0.8, 0.85, 0.9, 0.95]
-                .iter()
-                .map(|f| f * x_max)
-                .collect()),
-            (Effect::GeometricStiffness, true) if opts.lever.is_none() => {
-                Err("needs a lever joint (--config) to know G(φ, d)")
-            }
-            (Effect::GeometricStiffness, true) if !has_d => Err("needs the pivot column d"),
-            (Effect::Gravity, true) if !has_q => Err("needs the link angle column q"),
-            // sin q and cos q of a link that hardly turns are a constant and a slope: an
-            // offset and a spring, not gravity.
-            (Effect::Gravity, _) if q_range < 0.5 => {
-                Err("the link angle moves less than 0.5 rad: gravity cannot be told from an offset")
-            }
-            (Effect::SensorDelay, _) => {
-                // The torque sensor lags (filters, transport). A torque that leads the
-                // encoder by δ is, at these speeds, k·δ·ẋ: viscous friction, named so.
-                let step = dt.max(opts.max_delay / 40.0);
-                let k = (opts.max_delay / step).floor() as i64;
-                Ok((1..=k).map(|i| i as f64 * step).collect())
-            }
-            (Effect::Offset, _) => {
-                let mut g: Vec<f64> = (1..24).map(|i| duration * i as f64 / 24.0).collect();
-                if opts.model != Declared::Linear {
-                    g.push(f64::NAN);
-                }
-                Ok(g)
-            }
-            (Effect::PeriodicRipple, _) => {
-                let angle: Vec<f64> = if has_q {
-                    p.runs
-                        .iter()
-                        .flat_map(|r| r.q.clone().unwrap_or_default())
-                        .collect()
-                } else {
-                    all_x.clone()
-                };
-                let range = angle.iter().cloned().fold(f64::NEG_INFINITY, f64::max)
-                    - angle.iter().cloned().fold(f64::INFINITY, f64::min);
-                Ok(logspace(range / 60.0, range / 3.0, 30))
-            }
-            _ => Ok(vec![f64::NAN]),
-        };
-        match grid {
-            Ok(g) if !g.is_empty() => candidates.push((e, g)),
-            Ok(_) => not_applicable.push((e, "the data's range is too small")),
-            Err(why) => not_applicable.push((e, why)),
-        }
-    }
-
-    // Forward selection on validation blocks.
-    let per_round: usize = candidates.iter().map(|(_, g)| g.len()).sum();
+    let (candidates, not_applicable) = select::candidates(&p, opts, dt, duration);
+    let per_round: usize = candidates.iter().map(|(_, g)| g.len() + 7).sum();
     let total = per_round * (opts.max_effects + 1).min(candidates.len() + 1);
     let mut done = 0usize;
-    let mut chosen: Vec<Shaped> = Vec::new();
-    let mut gains: Vec<f64> = Vec::new();
-    let mut best_refused: Vec<(Effect, f64)>;
-    let restoring_before = p.restoring.clone();
-    let mut sig = p.signals(0.0);
-    let mut current = fit(&sig, &chosen, &p.tau, &train)
-        .ok_or(IdentifyError::Solve)?
-        .error_on(&p.tau, &validate);
-    loop {
-        let mut best: Option<(Shaped, f64)> = None;
-        let mut per_effect: Vec<(Effect, f64)> = Vec::new();
-        for (e, grid) in &candidates {
-            if chosen.iter().any(|c| c.effect == *e) {
-                continue;
-            }
-            let mut tick = || {
-                done += 1;
-                progress(done, total.max(done));
-            };
-            let found = search(
-                &p,
-                Some(&sig),
-                &chosen,
-                *e,
-                grid,
-                &train,
-                &validate,
-                &mut tick,
-            );
-            per_effect.push((*e, found.map_or(f64::NEG_INFINITY, |f| 1.0 - f.1 / current)));
-            if let Some(f) = found
-                && best.as_ref().is_none_or(|b| f.1 < b.1)
-            {
-                best = Some(f);
-            }
-        }
-        best_refused = per_effect;
-        let Some((cand, err)) = best else { break };
-        let gain = 1.0 - err / current;
-        if gain < opts.min_gain || chosen.len() >= opts.max_effects {
-            break;
-        }
-        chosen.push(cand);
-        gains.push(gain);
-        if opts.model == Declared::Restoring {
-            // The declared model was fitted with the effect's share in its data (a lag
-            // widens its loop, friction raises it): refit it without, and search the delay
-            // again against the refitted model.
-            // Alternate until the delay settles (a lag and a loop trade off slowly).
-            for _ in 0..8 {
-                p.restoring = Some(refit_restoring(&p, &chosen, &fit_rows)?);
-                let Some(k) = chosen.iter().position(|c| c.effect == Effect::SensorDelay) else {
-                    break;
-                };
-                let Some((_, grid)) = candidates.iter().find(|(e, _)| *e == Effect::SensorDelay)
-                else {
-                    break;
-                };
-                let others: Vec<Shaped> = chosen
-                    .iter()
-                    .copied()
-                    .filter(|c| c.effect != Effect::SensorDelay)
-                    .collect();
-                let before = chosen[k].shape;
-                if let Some((d, _)) = search(
-                    &p,
-                    None,
-                    &others,
-                    Effect::SensorDelay,
-                    grid,
-                    &train,
-                    &validate,
-                    &mut || {},
-                ) {
-                    chosen[k] = d;
-                }
-                if chosen[k].shape == before {
-                    break;
-                }
-            }
-        }
-        // The new baseline (with the restoring model, against its refitted loop).
-        sig = p.signals(delay_of(&chosen));
-        current = fit(&sig, &chosen, &p.tau, &train)
-            .ok_or(IdentifyError::Solve)?
-            .error_on(&p.tau, &validate);
-    }
-    progress(total.max(done), total.max(done));
 
-    // Final fits on all the fit data; every figure on the held-out rows.
-    let refitted = std::mem::replace(&mut p.restoring, restoring_before);
-    let sig0 = p.signals(0.0);
-    let before = fit(&sig0, &[], &p.tau, &fit_rows).ok_or(IdentifyError::Solve)?;
-    let mut held_errs = vec![before.error_on(&p.tau, &held_rows)];
-    let base_before = base_params(opts.model, before.part(0), p.restoring.as_ref());
-    p.restoring = refitted;
-    // Each chosen effect, in order, must also lower the held-out error; one that does not
-    // is refused (it fitted something of the fit data that the held-out data lacks).
-    let mut kept: Vec<Shaped> = Vec::new();
-    let mut kept_gains: Vec<f64> = Vec::new();
-    let mut refused: Vec<Refused> = Vec::new();
-    for (c, g) in chosen.iter().zip(&gains) {
-        let mut trial = kept.clone();
-        trial.push(*c);
-        let s = p.signals(delay_of(&trial));
-        let f = fit(&s, &trial, &p.tau, &fit_rows).ok_or(IdentifyError::Solve)?;
-        let e = f.error_on(&p.tau, &held_rows);
-        if e < held_errs[held_errs.len() - 1] {
-            kept = trial;
-            kept_gains.push(*g);
-            held_errs.push(e);
-        } else {
-            refused.push(Refused {
-                effect: c.effect,
-                best_gain: *g,
-                why: "lowered the validation error but not the held-out error",
+    let vetted = select::with_heldout_veto(
+        &mut p,
+        &candidates,
+        &rows,
+        opts,
+        (&base, rmse(&e_tared), declared_curve),
+        &mut || {
+            done += 1;
+            progress(done, total.max(done));
+        },
+    )?;
+    progress(total.max(done), total.max(done));
+    let select::Vetted {
+        kept: chosen,
+        gains: kept_gains,
+        held_errs,
+        curve,
+        mut refused,
+        not_added,
+    } = vetted;
+    p.restoring = curve;
+    let sig = p.signals(Transform::of(&chosen));
+    let after = fit(&sig, &chosen, &p.tau, &rows.fit).ok_or(IdentifyError::Solve)?;
+    let base_coefs = after.part(0).to_vec();
+    // A torque zero at rest that stands out of the noise, the same in every run, is a sensor
+    // offset, calibrated by the tare: named where the declared model has no constant to hold
+    // it (the restoring model), with the tare's held-out gain.
+    let mut effects: Vec<Found> = Vec::new();
+    if opts.model == Declared::Restoring && !tare.is_empty() {
+        let zero = tare.iter().map(|t| t.torque_zero).sum::<f64>() / tare.len() as f64;
+        let peak = raw.tau.iter().fold(0.0f64, |m, v| m.max(v.abs()));
+        if tare
+            .iter()
+            .all(|t| (t.torque_zero - zero).abs() < 0.25 * zero.abs())
+            && tare
+                .iter()
+                .all(|t| t.torque_zero.abs() > (3.0 * t.torque_noise).max(0.005 * peak))
+        {
+            effects.push(Found {
+                effect: Effect::Offset,
+                on: Some(Place::Torque),
+                params: vec![("bias_nm", zero), ("from_tare", 1.0)],
+                gain_rmse: rmse(&e_before) - rmse(&e_tared),
+                validation_gain: f64::NAN,
             });
         }
     }
-    let chosen = kept;
-    let sig = p.signals(delay_of(&chosen));
-    let after = fit(&sig, &chosen, &p.tau, &fit_rows).ok_or(IdentifyError::Solve)?;
-    let effects: Vec<Found> = chosen
-        .iter()
-        .enumerate()
-        .map(|(k, c)| Found {
-            effect: c.effect,
-            params: c.params(after.part(k + 1), sig.base_has_intercept),
-            gain_rmse: held_errs[k] - held_errs[k + 1],
-            validation_gain: kept_gains[k],
-        })
-        .collect();
-    refused.extend(best_refused.into_iter().map(|(effect, best_gain)| Refused {
-        effect,
-        best_gain,
-        why: "its best validation gain is below the threshold",
+    effects.extend(chosen.iter().enumerate().map(|(k, c)| Found {
+        effect: c.effect,
+        on: (c.effect == Effect::Offset).then_some(c.on),
+        params: c.params(after.part(k + 1), &sig, &base_coefs),
+        gain_rmse: held_errs[k] - held_errs[k + 1],
+        validation_gain: kept_gains[k],
     }));
-    let err_of = |f: &Fitted| -> Vec<f64> {
-        held_rows
+    refused.extend(
+        not_added
+            .into_iter()
+            .map(|(effect, best_gain, score)| Refused {
+                effect,
+                best_gain,
+                why: if best_gain < opts.min_gain {
+                    "its best validation gain is below the threshold"
+                } else if score <= 0.0 {
+                    "its gain is within what the residual's effective samples explain (information criterion)"
+                } else {
+                    "another effect scored higher and this one was not needed after it"
+                },
+            }),
+    );
+    let e_after = after.residual_on(&p.tau, &rows.held);
+    let sig0 = p.signals(Transform::default());
+    let heldout = report::heldout(&p, &rows.held, &sig0, &base, &after);
+    let bias = report::bias(&p, &heldout, &e_after);
+    let loop_before =
+        report::loop_area(&p, &sig0.x, &rows.fit, &base.residual_on(&p.tau, &rows.fit));
+    let loop_after = report::loop_area(&p, &sig.x, &rows.held, &e_after);
+    let residual = report::diagnose(
+        &p,
+        &sig,
+        &rows.held,
+        &e_after,
+        dt,
+        opts,
+        (loop_before, loop_after),
+        chosen
             .iter()
-            .map(|&i| p.tau[i] - f.prediction[i])
-            .collect()
-    };
-    let (e_before, e_after) = (err_of(&before), err_of(&after));
-    let heldout = Heldout {
-        run: held_rows
-            .iter()
-            .map(|&i| {
-                p.bounds
-                    .iter()
-                    .position(|&(a, b)| i >= a && i < b)
-                    .unwrap_or(0)
-            })
-            .collect(),
-        t: held_rows.iter().map(|&i| sig0.t_rel[i]).collect(),
-        x: held_rows.iter().map(|&i| sig0.x[i]).collect(),
-        measured: held_rows.iter().map(|&i| p.tau[i]).collect(),
-        before: held_rows.iter().map(|&i| before.prediction[i]).collect(),
-        after: held_rows.iter().map(|&i| after.prediction[i]).collect(),
-    };
-    let bias = p
-        .runs
-        .iter()
-        .enumerate()
-        .filter_map(|(k, r)| {
-            let e: Vec<f64> = heldout
-                .run
-                .iter()
-                .zip(&e_after)
-                .filter(|(run, _)| **run == k)
-                .map(|(_, e)| *e)
-                .collect();
-            (!e.is_empty()).then(|| (r.name.clone(), mean(&e)))
-        })
-        .collect();
-    let residual = diagnose(&p, &sig, &held_rows, &e_after, dt, opts);
+            .any(|c| c.effect == Effect::SensorDelay && c.shape > 0.0),
+    );
     Ok(Identified {
         model: opts.model,
-        fit_samples: fit_rows.len(),
-        holdout_samples: held_rows.len(),
+        fit_samples: rows.fit.len(),
+        holdout_samples: rows.held.len(),
         before: Errors::of(&e_before),
+        tared: Errors::of(&e_tared),
         after: Errors::of(&e_after),
+        tare,
+        tare_note,
         base_before,
-        base_after: base_params(opts.model, after.part(0), p.restoring.as_ref()),
+        base_after: base_params(opts.model, &base_coefs, p.restoring.as_ref()),
         effects,
         refused,
         not_applicable,
@@ -852,253 +456,6 @@ pub fn identify(
         bias,
         heldout,
         dt,
-        dead_band,
-    })
-}
-
-/// The shaped effect's delay, if one is chosen [s].
-fn delay_of(c: &[Shaped]) -> f64 {
-    c.iter()
-        .find(|s| s.effect == Effect::SensorDelay)
-        .map_or(0.0, |s| s.shape)
-}
-
-/// The best shape of `effect` on its grid, refined between the best point's neighbours:
-/// the effects in `chosen` plus it, fitted on `train`, scored (RMSE) on `validate`. Shapes
-/// whose coefficient has the wrong sign for the effect's meaning are skipped. `sig` are the
-/// signals of `chosen`; a sensor delay makes its own per shape and needs none.
-#[allow(clippy::too_many_arguments)]
-fn search(
-    p: &Problem,
-    sig: Option<&Signals>,
-    chosen: &[Shaped],
-    effect: Effect,
-    grid: &[f64],
-    train: &[usize],
-    validate: &[usize],
-    tick: &mut dyn FnMut(),
-) -> Option<(Shaped, f64)> {
-    let trial_at = |shape: f64| -> Option<f64> {
-        let cand = Shaped { effect, shape };
-        let mut trial = chosen.to_vec();
-        trial.push(cand);
-        let delayed;
-        let s = match sig {
-            Some(s) if effect != Effect::SensorDelay => s,
-            _ => {
-                delayed = p.signals(shape);
-                &delayed
-            }
-        };
-        let f = fit(s, &trial, &p.tau, train)?;
-        let c0 = f.part(trial.len()).first().copied().unwrap_or(0.0);
-        let ok = match cand.sign() {
-            Sign::Positive => c0 > 0.0,
-            Sign::Negative => c0 < 0.0,
-            Sign::Any => true,
-        };
-        ok.then(|| f.error_on(&p.tau, validate))
-    };
-    let mut scored: Vec<(f64, f64)> = Vec::new();
-    for &shape in grid {
-        tick();
-        if let Some(err) = trial_at(shape) {
-            scored.push((shape, err));
-        }
-    }
-    let best = |v: &[(f64, f64)]| v.iter().copied().min_by(|a, b| a.1.total_cmp(&b.1));
-    if let Some((shape, _)) = best(&scored)
-        && shape.is_finite()
-        && grid.len() > 2
-    {
-        let at = grid.iter().position(|g| *g == shape).unwrap_or(0);
-        let lo = grid[at.saturating_sub(1)];
-        let hi = grid[(at + 1).min(grid.len() - 1)];
-        for j in 1..8 {
-            let shape = lo + (hi - lo) * j as f64 / 8.0;
-            // On an even grid the midpoint is the grid point itself, already scored.
-            if (shape - grid[at]).abs() <= 1e-12 * grid[at].abs() {
-                continue;
-            }
-            if let Some(err) = trial_at(shape) {
-                scored.push((shape, err));
-            }
-        }
-    }
-    best(&scored).map(|(shape, err)| (Shaped { effect, shape }, err))
-}
-
-/// Refits the restoring-torque model to the torque less the chosen effects' share, with the
-/// inputs delayed as chosen.
-fn refit_restoring(
-    p: &Problem,
-    chosen: &[Shaped],
-    rows: &[usize],
-) -> Result<RestoringCurve, IdentifyError> {
-    let delay = delay_of(chosen);
-    let s = p.signals(delay);
-    let f = fit(&s, chosen, &p.tau, rows).ok_or(IdentifyError::Solve)?;
-    let c0 = f.part(0).first().copied().unwrap_or(1.0);
-    let base = s.base.first().map_or(&[][..], Vec::as_slice);
-    let target: Vec<f64> = (0..p.tau.len())
-        .map(|i| p.tau[i] - (f.prediction[i] - c0 * base.get(i).copied().unwrap_or(0.0)))
-        .collect();
-    fit_restoring_on(p, rows, &target, delay)
-}
-
-/// Fits the restoring-torque model on the fit rows, the inputs delayed by `delay` [s].
-fn fit_restoring_on(
-    p: &Problem,
-    rows: &[usize],
-    target: &[f64],
-    delay: f64,
-) -> Result<RestoringCurve, IdentifyError> {
-    let mut samples = Vec::with_capacity(rows.len());
-    let mut offset = 0;
-    for r in &p.runs {
-        let n = r.t.len();
-        let phi = signals::shifted(&r.t, r.phi.as_ref().map_or(&[][..], Vec::as_slice), delay);
-        let d = r.d.as_ref().map(|d| signals::shifted(&r.t, d, delay));
-        for k in 0..n {
-            let i = offset + k;
-            if rows.binary_search(&i).is_ok() && k < phi.len() {
-                samples.push(FitSample {
-                    phi: phi[k],
-                    tau: target[i],
-                    d: d.as_ref().map_or(0.0, |d| d[k]),
-                });
-            }
-        }
-        offset += n;
-    }
-    let fo = FitOptions {
         dead_band: p.dead_band,
-        d_tolerance: 1e-4,
-        ..FitOptions::default()
-    };
-    fit_restoring(&samples, &fo)
-        .map(|f| f.curve)
-        .map_err(|e| IdentifyError::Restoring(e.to_string()))
-}
-
-/// The declared model's parameters.
-fn base_params(
-    model: Declared,
-    c: &[f64],
-    curve: Option<&RestoringCurve>,
-) -> Vec<(&'static str, f64)> {
-    match model {
-        Declared::Linear => vec![("stiffness_nm_per_rad", c[0]), ("offset_nm", c[1])],
-        Declared::Link => vec![("inertia_kgm2", c[0]), ("damping_nms_per_rad", c[1])],
-        Declared::Restoring => {
-            let mut v = vec![("scale", c[0])];
-            if let Some(curve) = curve {
-                let t = curve.table();
-                if let Some((_, p)) = t.first() {
-                    v.extend([
-                        ("stiffness_nm_per_rad", p.k),
-                        ("loop_half_height_nm", p.h),
-                        ("a_s", p.a_s),
-                        ("n", p.n),
-                    ]);
-                }
-            }
-            v
-        }
-    }
-}
-
-/// Whiteness and cross-correlations of the held-out residual, and what they point to.
-fn diagnose(
-    p: &Problem,
-    s: &Signals,
-    rows: &[usize],
-    e: &[f64],
-    dt: f64,
-    opts: &Options,
-) -> Residual {
-    // Contiguous held-out stretches, resampled onto a uniform grid (sampling may be irregular).
-    let mut seg_e = Vec::new();
-    let mut seg_in: Vec<Vec<Vec<f64>>> = vec![Vec::new(); 3];
-    let inputs: [(&'static str, &[f64]); 3] = [
-        (
-            if opts.model.is_joint() {
-                "deflection"
-            } else {
-                "angle"
-            },
-            &s.x,
-        ),
-        ("rate", &s.xdot),
-        ("direction", &s.dir),
-    ];
-    let mut start = 0;
-    let t_abs: Vec<f64> = p.runs.iter().flat_map(|r| r.t.iter().copied()).collect();
-    for k in 1..=rows.len() {
-        if k == rows.len() || rows[k] != rows[k - 1] + 1 {
-            let idx = &rows[start..k];
-            let t: Vec<f64> = idx.iter().map(|&i| t_abs[i]).collect();
-            let ee = &e[start..k];
-            seg_e.extend(signals::uniform_segments(&t, ee, dt, 5.0 * dt));
-            for (j, (_, x)) in inputs.iter().enumerate() {
-                let xs: Vec<f64> = idx.iter().map(|&i| x[i]).collect();
-                seg_in[j].extend(signals::uniform_segments(&t, &xs, dt, 5.0 * dt));
-            }
-            start = k;
-        }
-    }
-    let n: usize = seg_e.iter().map(|s| s.len()).sum();
-    let lags = 50usize;
-    // Two-sided 5 % over 50 lags, Bonferroni: z = Φ⁻¹(1 − 0.025/50) = 3.29.
-    let band = 3.29 / (n.max(1) as f64).sqrt();
-    let autocorr = stats::autocorrelation(&seg_e, lags);
-    let (kmax, max_autocorr) = autocorr
-        .iter()
-        .enumerate()
-        .map(|(k, r)| (k + 1, r.abs()))
-        .fold((0, 0.0), |a, b| if b.1 > a.1 { b } else { a });
-    let white = max_autocorr <= band;
-    let lag_span = ((opts.max_delay / dt).round() as i64).clamp(5, 200);
-    let mut cross = Vec::new();
-    let mut cross_curves = Vec::new();
-    for (j, (name, _)) in inputs.iter().enumerate() {
-        let c = stats::cross_correlation(&seg_e, &seg_in[j], -lag_span, lag_span);
-        let (lag, r) =
-            c.iter().copied().fold(
-                (0, 0.0f64),
-                |a, b| if b.1.abs() > a.1.abs() { b } else { a },
-            );
-        cross.push(Correlation {
-            input: name,
-            max_abs: r.abs(),
-            lag_s: lag as f64 * dt,
-        });
-        cross_curves.push((*name, c.iter().map(|&(k, r)| (k as f64 * dt, r)).collect()));
-    }
-    let mut structure = Vec::new();
-    if !white {
-        structure.push(format!(
-            "the residual is not white: autocorrelation {max_autocorr:.2} at lag {:.3} s (band ±{band:.3}) — slow structure no candidate explains",
-            kmax as f64 * dt
-        ));
-    }
-    for c in &cross {
-        if c.max_abs > band.max(0.1) {
-            structure.push(format!(
-                "it correlates with the {} ({:.2} at {:+.3} s)",
-                c.input, c.max_abs, c.lag_s
-            ));
-        }
-    }
-    Residual {
-        white,
-        max_autocorr,
-        max_autocorr_lag_s: kmax as f64 * dt,
-        band,
-        lags,
-        autocorr,
-        cross,
-        cross_curves,
-        structure,
-    }
+    })
 }

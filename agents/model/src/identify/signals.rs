@@ -62,7 +62,13 @@ pub fn rate_sign(xdot: &[f64], still: f64) -> Vec<f64> {
 /// element): it follows increments of `x` but stays within ±r, starting at 0. The play
 /// operator (backlash of total width 2r) is `x − stop`.
 pub fn stop_operator(x: &[f64], r: f64) -> Vec<f64> {
-    let mut s = 0.0f64;
+    stop_operator_from(x, r, 0.0)
+}
+
+/// The stop operator of half-width `r` starting at `s0` (clamped to ±r): the state a run
+/// begins in after the motion that came before it (s0 = +r: it arrived loading from below).
+pub fn stop_operator_from(x: &[f64], r: f64, s0: f64) -> Vec<f64> {
+    let mut s = s0.clamp(-r.abs(), r.abs());
     let mut prev = x.first().copied().unwrap_or(0.0);
     x.iter()
         .map(|&xi| {
@@ -73,12 +79,41 @@ pub fn stop_operator(x: &[f64], r: f64) -> Vec<f64> {
         .collect()
 }
 
+/// The dead zone of half-width `r`: sgn x · max(|x| − r, 0). What a spring in series with a
+/// gap of total width 2r sees of the deflection measured across both (no memory: the spring
+/// is unloaded anywhere inside the gap).
+pub fn dead_zone(x: f64, r: f64) -> f64 {
+    (x.abs() - r).max(0.0) * x.signum()
+}
+
 /// `x` at times `t − delay` by linear interpolation (held at the ends).
 pub fn shifted(t: &[f64], x: &[f64], delay: f64) -> Vec<f64> {
     if delay == 0.0 {
         return x.to_vec();
     }
-    t.iter().map(|&ti| interp(t, x, ti - delay)).collect()
+    // The times t − delay increase with t: walk one index along instead of searching.
+    let n = t.len().min(x.len());
+    let mut k = 0usize;
+    t.iter()
+        .map(|&ti| {
+            let at = ti - delay;
+            if n == 0 {
+                return f64::NAN;
+            }
+            if at <= t[0] {
+                return x[0];
+            }
+            if at >= t[n - 1] {
+                return x[n - 1];
+            }
+            while k + 1 < n && t[k + 1] <= at {
+                k += 1;
+            }
+            let (t0, t1) = (t[k], t[k + 1]);
+            let w = if t1 > t0 { (at - t0) / (t1 - t0) } else { 0.0 };
+            x[k] + w * (x[k + 1] - x[k])
+        })
+        .collect()
 }
 
 /// Linear interpolation of (t, x) at `at`; `t` increasing; held at the ends.

@@ -49,6 +49,175 @@ pub fn least_squares(cols: &[&[f64]], y: &[f64], rows: &[usize]) -> Option<Vec<f
     out.iter().all(|v| v.is_finite()).then_some(out)
 }
 
+/// A sign a coefficient must keep (friction resists, a stop stiffens, hysteresis dissipates).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Bound {
+    Free,
+    NonNegative,
+    NonPositive,
+}
+
+/// Least squares `y ≈ Σ c_j·cols[j]` over `rows` with sign bounds on some coefficients
+/// (Lawson & Hanson's active-set method, with free variables). Columns are scaled to unit
+/// RMS; each sub-problem is solved on the normal equations by SVD, so collinear columns give
+/// the minimum-norm answer. A bounded coefficient that would take the wrong sign is held at 0.
+/// `None` when nothing is finite.
+pub fn bounded_least_squares(
+    cols: &[&[f64]],
+    bounds: &[Bound],
+    y: &[f64],
+    rows: &[usize],
+) -> Option<Vec<f64>> {
+    let p = cols.len();
+    if p == 0 || rows.is_empty() {
+        return Some(vec![0.0; p]);
+    }
+    // Scaled columns; a NonPositive column is negated so that every bound reads c ≥ 0.
+    let flip: Vec<f64> = (0..p)
+        .map(|j| match bounds.get(j) {
+            Some(Bound::NonPositive) => -1.0,
+            _ => 1.0,
+        })
+        .collect();
+    let scale: Vec<f64> = cols
+        .iter()
+        .map(|c| {
+            let s = (rows.iter().map(|&i| c[i] * c[i]).sum::<f64>() / rows.len() as f64).sqrt();
+            if s > 0.0 && s.is_finite() { s } else { 1.0 }
+        })
+        .collect();
+    let mut g = DMatrix::<f64>::zeros(p, p);
+    let mut b = DVector::<f64>::zeros(p);
+    let mut row = vec![0.0; p];
+    for &i in rows {
+        for j in 0..p {
+            row[j] = cols[j][i] * flip[j] / scale[j];
+        }
+        for j in 0..p {
+            b[j] += row[j] * y[i];
+            for k in j..p {
+                g[(j, k)] += row[j] * row[k];
+            }
+        }
+    }
+    for j in 0..p {
+        for k in 0..j {
+            g[(j, k)] = g[(k, j)];
+        }
+    }
+    if !(g.iter().all(|v| v.is_finite()) && b.iter().all(|v| v.is_finite())) {
+        return None;
+    }
+    let bounded: Vec<bool> = (0..p)
+        .map(|j| !matches!(bounds.get(j), None | Some(Bound::Free)))
+        .collect();
+    // Least squares on the passive set (the others held at 0).
+    let solve = |passive: &[bool]| -> Option<Vec<f64>> {
+        let idx: Vec<usize> = (0..p).filter(|&j| passive[j]).collect();
+        let mut out = vec![0.0; p];
+        if idx.is_empty() {
+            return Some(out);
+        }
+        let gs = DMatrix::from_fn(idx.len(), idx.len(), |r, c| g[(idx[r], idx[c])]);
+        let bs = DVector::from_iterator(idx.len(), idx.iter().map(|&j| b[j]));
+        let tol = 1e-12 * gs.iter().fold(0.0f64, |m, v| m.max(v.abs())).max(1e-300);
+        let z = gs.svd(true, true).solve(&bs, tol).ok()?;
+        for (k, &j) in idx.iter().enumerate() {
+            out[j] = z[k];
+        }
+        Some(out)
+    };
+    let mut passive: Vec<bool> = bounded.iter().map(|b| !b).collect();
+    let mut x = solve(&passive)?;
+    // The free variables alone may already leave a bounded one with a wrong-sign gradient.
+    for _ in 0..(3 * p + 3) {
+        // Feasible: move in the bounded variable whose gradient most wants to grow.
+        let w: Vec<f64> = (0..p)
+            .map(|j| b[j] - (0..p).map(|k| g[(j, k)] * x[k]).sum::<f64>())
+            .collect();
+        let gmax = w.iter().fold(0.0f64, |m, v| m.max(v.abs()));
+        let next = (0..p)
+            .filter(|&j| bounded[j] && !passive[j] && w[j] > 1e-10 * gmax.max(1e-300))
+            .max_by(|&a, &c| w[a].total_cmp(&w[c]));
+        let Some(j) = next else { break };
+        passive[j] = true;
+        // Inner loop: keep the bounded passive variables positive.
+        for _ in 0..(3 * p + 3) {
+            let z = solve(&passive)?;
+            let bad: Vec<usize> = (0..p)
+                .filter(|&k| bounded[k] && passive[k] && z[k] <= 0.0)
+                .collect();
+            if bad.is_empty() {
+                x = z;
+                break;
+            }
+            let alpha = bad
+                .iter()
+                .map(|&k| x[k] / (x[k] - z[k]).max(1e-300))
+                .fold(1.0f64, f64::min);
+            for k in 0..p {
+                x[k] += alpha * (z[k] - x[k]);
+            }
+            for k in 0..p {
+                if bounded[k] && passive[k] && x[k] <= 1e-14 {
+                    passive[k] = false;
+                    x[k] = 0.0;
+                }
+            }
+        }
+    }
+    let out: Vec<f64> = (0..p).map(|j| x[j] * flip[j] / scale[j]).collect();
+    out.iter().all(|v| v.is_finite()).then_some(out)
+}
+
+/// The effective number of independent samples in a residual pooled over contiguous
+/// segments: N / τ, with τ = 1 + 2·Σ_k ρ(k) its integrated autocorrelation time. ρ is
+/// computed at lags 1, 2, 3, 4, 6, 8, 12, … (integrated between them by the trapezoid rule)
+/// until it falls below 0.05. An autocorrelated residual (a real plant's, or a model's
+/// mismatch) carries far fewer independent samples than it has rows; a test of a fit's gain
+/// that counted rows would admit effects that only follow that slow structure.
+pub fn effective_samples(segments: &[&[f64]]) -> f64 {
+    let n: usize = segments.iter().map(|s| s.len()).sum();
+    if n < 3 {
+        return n as f64;
+    }
+    let m = segments.iter().flat_map(|s| s.iter()).sum::<f64>() / n as f64;
+    let var: f64 = segments
+        .iter()
+        .flat_map(|s| s.iter())
+        .map(|v| (v - m) * (v - m))
+        .sum();
+    if var <= 0.0 || !var.is_finite() {
+        return n as f64;
+    }
+    let rho = |k: usize| -> f64 {
+        let mut s = 0.0;
+        for seg in segments {
+            for i in k..seg.len() {
+                s += (seg[i] - m) * (seg[i - k] - m);
+            }
+        }
+        s / var
+    };
+    let longest = segments.iter().map(|s| s.len()).max().unwrap_or(0);
+    let mut tau = 1.0;
+    let (mut k_prev, mut r_prev) = (0usize, 1.0f64);
+    let mut k = 1usize;
+    while k < longest / 2 {
+        let r = rho(k).max(0.0);
+        // Σ over the integer lags in (k_prev, k], trapezoid between the two samples of ρ.
+        // (ρ linear in between: Σ_{j=1..span} = span·(r + r_prev)/2 + (r − r_prev)/2).
+        let span = (k - k_prev) as f64;
+        tau += span * (r + r_prev) + (r - r_prev);
+        if r < 0.05 {
+            break;
+        }
+        (k_prev, r_prev) = (k, r);
+        k = if k < 4 { k + 1 } else { k + k / 2 };
+    }
+    (n as f64 / tau.max(1.0)).clamp(1.0, n as f64)
+}
+
 /// `Σ c_j·cols[j][i]` for every row.
 pub fn combine(cols: &[&[f64]], coefs: &[f64], n: usize) -> Vec<f64> {
     let mut out = vec![0.0; n];
@@ -144,5 +313,86 @@ mod tests {
         assert!(best.1 > 0.95);
         assert_eq!(rmse(&[3.0, -4.0]), (12.5f64).sqrt());
         assert_eq!(mae(&[3.0, -4.0]), 3.5);
+    }
+
+    #[test]
+    fn bounded_least_squares_holds_a_wrong_signed_coefficient_at_zero() {
+        // y = 2·a − 0.5·b + 1: with b bounded non-negative, the best is b = 0 and the rest
+        // refitted: the least squares of y − 0 on (a, 1), which is exact for a orthogonal to b.
+        let a: Vec<f64> = (0..40).map(|i| (i as f64 * 0.3).sin()).collect();
+        let b: Vec<f64> = (0..40).map(|i| (i as f64 * 0.7).cos()).collect();
+        let one = vec![1.0; 40];
+        let y: Vec<f64> = (0..40).map(|i| 2.0 * a[i] - 0.5 * b[i] + 1.0).collect();
+        let rows: Vec<usize> = (0..40).collect();
+        let free = least_squares(&[&a, &b, &one], &y, &rows).unwrap();
+        let c = bounded_least_squares(
+            &[&a, &b, &one],
+            &[Bound::Free, Bound::Free, Bound::Free],
+            &y,
+            &rows,
+        )
+        .unwrap();
+        for (u, v) in free.iter().zip(&c) {
+            assert!((u - v).abs() < 1e-9, "{free:?} vs {c:?}");
+        }
+        let c = bounded_least_squares(
+            &[&a, &b, &one],
+            &[Bound::Free, Bound::NonNegative, Bound::Free],
+            &y,
+            &rows,
+        )
+        .unwrap();
+        assert_eq!(c[1], 0.0);
+        let y2: Vec<f64> = y.iter().zip(&b).map(|(y, b)| y + 0.5 * b).collect();
+        let want = least_squares(&[&a, &one], &y2, &rows).unwrap();
+        // y − (−0.5·b) is what (a, 1) must now fit: compare the fit of y itself on (a, 1).
+        let direct = least_squares(&[&a, &one], &y, &rows).unwrap();
+        assert!((c[0] - direct[0]).abs() < 1e-9 && (c[2] - direct[1]).abs() < 1e-9);
+        assert!((want[0] - 2.0).abs() < 1e-9);
+        // A coefficient that wants its sign keeps it, bounded or not.
+        let c = bounded_least_squares(
+            &[&a, &b, &one],
+            &[Bound::NonNegative, Bound::NonPositive, Bound::Free],
+            &y,
+            &rows,
+        )
+        .unwrap();
+        assert!(
+            (c[0] - 2.0).abs() < 1e-9 && (c[1] + 0.5).abs() < 1e-9,
+            "{c:?}"
+        );
+    }
+
+    #[test]
+    fn effective_samples_match_the_ar1_closed_form() {
+        // White noise: about N. An AR(1) process with coefficient a: N·(1 − a)/(1 + a).
+        let mut state = 12345u64;
+        let mut gauss = || {
+            // Sum of 12 uniforms − 6: unit variance, near Gaussian; a tiny LCG keeps it pure.
+            let mut s = 0.0;
+            for _ in 0..12 {
+                state = state
+                    .wrapping_mul(6364136223846793005)
+                    .wrapping_add(1442695040888963407);
+                s += (state >> 11) as f64 / (1u64 << 53) as f64;
+            }
+            s - 6.0
+        };
+        let n = 40_000;
+        let white: Vec<f64> = (0..n).map(|_| gauss()).collect();
+        let ne = effective_samples(&[&white]);
+        assert!((ne / n as f64 - 1.0).abs() < 0.1, "{ne}");
+        for a in [0.5, 0.9, 0.98] {
+            let mut v = 0.0;
+            let ar: Vec<f64> = (0..n)
+                .map(|_| {
+                    v = a * v + gauss();
+                    v
+                })
+                .collect();
+            let ne = effective_samples(&[&ar]);
+            let want = n as f64 * (1.0 - a) / (1.0 + a);
+            assert!((ne / want - 1.0).abs() < 0.3, "a = {a}: {ne} vs {want}");
+        }
     }
 }

@@ -1,0 +1,339 @@
+//! The prediction: the declared model's columns on the (possibly corrected) inputs, plus the
+//! columns of the added effects, with coefficients fitted by bounded least squares.
+
+use super::effects::{Effect, Place, Shaped};
+use super::rows::Problem;
+use super::signals::{self, dead_zone};
+use super::stats::{Bound, bounded_least_squares, combine, rmse};
+use super::{Declared, IdentifyError};
+use crate::hysteresis::{
+    FitOptions, FitSample, RestoringCurve, RestoringTorqueModel, fit_restoring,
+};
+use crate::lever::LeverVsa;
+
+/// How the measured inputs are changed before the declared model sees them.
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub(crate) struct Transform {
+    /// The model is fed x(t − delay) [s].
+    pub delay: f64,
+    /// Half-width of a gap in series with the spring [rad] (0: none).
+    pub gap: f64,
+    /// Whether the declared model's slope dτ̂/dx is wanted (by an encoder offset searched).
+    pub slope: bool,
+    /// An encoder offset of known size: the input becomes x + δ from t_j on (t_j NaN: always).
+    pub slip: Option<(f64, f64)>,
+}
+
+impl Transform {
+    /// The transform the chosen input effects make.
+    pub fn of(chosen: &[Shaped]) -> Self {
+        let mut t = Transform::default();
+        for c in chosen {
+            t = t.with(c);
+        }
+        t
+    }
+
+    /// The encoder correction at time `t` since the run's start [rad].
+    pub fn slip_at(&self, t: f64) -> f64 {
+        match self.slip {
+            // A constant offset (t_j NaN) applies throughout.
+            Some((tj, d)) if tj.is_nan() || t >= tj => d,
+            _ => 0.0,
+        }
+    }
+
+    /// With one more (or a replaced) input effect.
+    pub fn with(mut self, c: &Shaped) -> Self {
+        match (c.effect, c.on) {
+            (Effect::SensorDelay, _) => self.delay = c.shape,
+            (Effect::Backlash, _) => self.gap = c.shape,
+            (Effect::Offset, Place::Deflection) if c.size.is_finite() => {
+                self.slip = Some((c.shape, c.size));
+            }
+            (Effect::Offset, Place::Deflection) => self.slope = true,
+            _ => {}
+        }
+        self
+    }
+}
+
+/// Signals over all runs, concatenated, for one input transform.
+#[derive(Debug, Clone)]
+pub struct Signals {
+    /// Deflection φ (joint torque) or link angle q (link equation), delayed.
+    pub x: Vec<f64>,
+    /// What the spring sees of it (through a gap, when there is backlash).
+    pub xs: Vec<f64>,
+    pub xdot: Vec<f64>,
+    pub xddot: Vec<f64>,
+    pub dir: Vec<f64>,
+    /// Pivot position [m] (0 where absent).
+    pub d: Vec<f64>,
+    /// Link angle, when known.
+    pub q: Option<Vec<f64>>,
+    /// Angle a ripple is periodic in (q when known, else x).
+    pub angle: Vec<f64>,
+    /// Time since the run's start [s].
+    pub t_rel: Vec<f64>,
+    /// Longest run [s].
+    pub duration: f64,
+    pub lever: Option<LeverVsa>,
+    pub base_has_intercept: bool,
+    /// Half-widths of hysteresis's stop operators [rad].
+    pub widths: Vec<f64>,
+    /// dτ̂/dx of the declared model along the path (the restoring model; a linear spring's
+    /// is its constant k, so an encoder offset there is a torque offset).
+    pub slope: Option<Vec<f64>>,
+    /// The declared model's columns.
+    pub(crate) base: Vec<Vec<f64>>,
+    /// Those of its columns that are elastic torque (what a stiffness drift scales).
+    pub(crate) elastic: Vec<Vec<f64>>,
+    /// Row ranges of the runs.
+    bounds: Vec<(usize, usize)>,
+}
+
+impl Signals {
+    /// A column built run by run (stateful operators restart at each run).
+    pub(crate) fn per_run(&self, f: impl Fn(usize, usize) -> Vec<f64>) -> Vec<f64> {
+        let mut out = Vec::with_capacity(self.x.len());
+        for &(a, b) in &self.bounds {
+            out.extend(f(a, b));
+        }
+        out
+    }
+}
+
+impl Problem {
+    /// The signals with the inputs changed by `tr`.
+    pub(crate) fn signals(&self, tr: Transform) -> Signals {
+        let joint = self.model.is_joint();
+        let has_q = self.runs.iter().all(|r| r.q.is_some());
+        let mut s = Signals {
+            x: vec![],
+            xs: vec![],
+            xdot: vec![],
+            xddot: vec![],
+            dir: vec![],
+            d: vec![],
+            q: None,
+            angle: vec![],
+            t_rel: vec![],
+            duration: 0.0,
+            lever: self.lever,
+            base_has_intercept: self.model == Declared::Linear,
+            widths: self.widths.clone(),
+            slope: None,
+            base: vec![],
+            elastic: vec![],
+            bounds: self.bounds.clone(),
+        };
+        let mut q_all = Vec::new();
+        for (k, r) in self.runs.iter().enumerate() {
+            let n = r.t.len();
+            let xs = if joint { r.phi.as_ref() } else { r.q.as_ref() };
+            let x = signals::shifted(&r.t, xs.map_or(&[][..], Vec::as_slice), tr.delay);
+            // The rates of x(t − δ) are the rates at t − δ: shifted, not computed again.
+            let (v, a) = (
+                signals::shifted(&r.t, &self.rates[k].0, tr.delay),
+                signals::shifted(&r.t, &self.rates[k].1, tr.delay),
+            );
+            s.dir.extend(signals::rate_sign(
+                &v,
+                0.5 * self.resolution / self.rate_window,
+            ));
+            let d =
+                r.d.as_ref()
+                    .map_or(vec![0.0; n], |d| signals::shifted(&r.t, d, tr.delay));
+            if has_q {
+                q_all.extend(signals::shifted(
+                    &r.t,
+                    r.q.as_ref().map_or(&[][..], Vec::as_slice),
+                    tr.delay,
+                ));
+            }
+            let t0 = r.t[0];
+            s.duration = s.duration.max(r.t[n - 1] - t0);
+            s.t_rel.extend(r.t.iter().map(|t| t - t0));
+            s.xs.extend(x.iter().zip(&r.t).map(|(&v, &t)| {
+                if joint {
+                    dead_zone(v + tr.slip_at(t - t0), tr.gap)
+                } else {
+                    v
+                }
+            }));
+            s.x.extend(x);
+            s.xdot.extend(v);
+            s.xddot.extend(a);
+            s.d.extend(d);
+        }
+        s.angle = if has_q { q_all.clone() } else { s.x.clone() };
+        if has_q {
+            s.q = Some(q_all);
+        }
+        match self.model {
+            Declared::Linear => {
+                s.base = vec![s.xs.clone(), vec![1.0; s.xs.len()]];
+                s.elastic = vec![s.xs.clone()];
+            }
+            Declared::Link => s.base = vec![s.xddot.clone(), s.xdot.clone()],
+            Declared::Restoring => {
+                let Some(curve) = self.restoring.clone() else {
+                    return s;
+                };
+                let replay = |shift: f64| {
+                    s.per_run(|a, b| {
+                        let mut m = RestoringTorqueModel::new(curve.clone(), self.dead_band);
+                        (a..b).map(|i| m.update(s.xs[i] + shift, s.d[i])).collect()
+                    })
+                };
+                let base = replay(0.0);
+                if tr.slope {
+                    let eps = self.dead_band.max(1e-9);
+                    let (up, down) = (replay(eps), replay(-eps));
+                    s.slope = Some(
+                        up.iter()
+                            .zip(&down)
+                            .map(|(u, d)| (u - d) / (2.0 * eps))
+                            .collect(),
+                    );
+                }
+                s.elastic = vec![base.clone()];
+                s.base = vec![base];
+            }
+        }
+        s
+    }
+}
+
+/// A model: the declared columns and the shaped effects, with fitted coefficients.
+#[derive(Debug, Clone)]
+pub(crate) struct Fitted {
+    pub coefs: Vec<f64>,
+    pub prediction: Vec<f64>,
+    /// Column count per part: base first, then each effect.
+    pub widths: Vec<usize>,
+}
+
+/// Fits the declared model and `effects` (input effects must already be in `s`) on `rows`.
+pub(crate) fn fit(s: &Signals, effects: &[Shaped], tau: &[f64], rows: &[usize]) -> Option<Fitted> {
+    let mut cols: Vec<Vec<f64>> = s.base.clone();
+    let mut bounds = vec![Bound::Free; s.base.len()];
+    let mut widths = vec![s.base.len()];
+    for e in effects {
+        let c = e.columns(s);
+        widths.push(c.len());
+        for (col, b) in c {
+            cols.push(col);
+            bounds.push(b);
+        }
+    }
+    let refs: Vec<&[f64]> = cols.iter().map(|c| c.as_slice()).collect();
+    let coefs = bounded_least_squares(&refs, &bounds, tau, rows)?;
+    let prediction = combine(&refs, &coefs, tau.len());
+    Some(Fitted {
+        coefs,
+        prediction,
+        widths,
+    })
+}
+
+impl Fitted {
+    /// Coefficients of part `k` (0: the declared model, then the effects in order).
+    pub fn part(&self, k: usize) -> &[f64] {
+        let start: usize = self.widths[..k].iter().sum();
+        &self.coefs[start..start + self.widths[k]]
+    }
+
+    pub fn residual_on(&self, tau: &[f64], rows: &[usize]) -> Vec<f64> {
+        rows.iter().map(|&i| tau[i] - self.prediction[i]).collect()
+    }
+
+    pub fn error_on(&self, tau: &[f64], rows: &[usize]) -> f64 {
+        rmse(&self.residual_on(tau, rows))
+    }
+}
+
+/// Refits the restoring-torque model to the torque less the chosen effects' share, on the
+/// inputs as the chosen input effects change them.
+pub(crate) fn refit_restoring(
+    p: &Problem,
+    chosen: &[Shaped],
+    rows: &[usize],
+) -> Result<RestoringCurve, IdentifyError> {
+    let tr = Transform::of(chosen);
+    let s = p.signals(tr);
+    let f = fit(&s, chosen, &p.tau, rows).ok_or(IdentifyError::Solve)?;
+    let c0 = f.part(0).first().copied().unwrap_or(1.0);
+    let base = s.base.first().map_or(&[][..], Vec::as_slice);
+    let target: Vec<f64> = (0..p.tau.len())
+        .map(|i| p.tau[i] - (f.prediction[i] - c0 * base.get(i).copied().unwrap_or(0.0)))
+        .collect();
+    fit_restoring_on(p, rows, &target, tr)
+}
+
+/// Fits the restoring-torque model on the fit rows, the inputs changed by `tr`.
+pub(crate) fn fit_restoring_on(
+    p: &Problem,
+    rows: &[usize],
+    target: &[f64],
+    tr: Transform,
+) -> Result<RestoringCurve, IdentifyError> {
+    let mut samples = Vec::with_capacity(rows.len());
+    let mut offset = 0;
+    for r in &p.runs {
+        let n = r.t.len();
+        let phi = signals::shifted(
+            &r.t,
+            r.phi.as_ref().map_or(&[][..], Vec::as_slice),
+            tr.delay,
+        );
+        let d = r.d.as_ref().map(|d| signals::shifted(&r.t, d, tr.delay));
+        for k in 0..n.min(phi.len()) {
+            let i = offset + k;
+            if rows.binary_search(&i).is_ok() {
+                samples.push(FitSample {
+                    phi: dead_zone(phi[k] + tr.slip_at(r.t[k] - r.t[0]), tr.gap),
+                    tau: target[i],
+                    d: d.as_ref().map_or(0.0, |d| d[k]),
+                });
+            }
+        }
+        offset += n;
+    }
+    let fo = FitOptions {
+        dead_band: p.dead_band,
+        d_tolerance: 1e-4,
+        ..FitOptions::default()
+    };
+    fit_restoring(&samples, &fo)
+        .map(|f| f.curve)
+        .map_err(|e| IdentifyError::Restoring(e.to_string()))
+}
+
+/// The declared model's parameters.
+pub(crate) fn base_params(
+    model: Declared,
+    c: &[f64],
+    curve: Option<&RestoringCurve>,
+) -> Vec<(&'static str, f64)> {
+    match model {
+        Declared::Linear => vec![("stiffness_nm_per_rad", c[0]), ("offset_nm", c[1])],
+        Declared::Link => vec![("inertia_kgm2", c[0]), ("damping_nms_per_rad", c[1])],
+        Declared::Restoring => {
+            let mut v = vec![("scale", c[0])];
+            if let Some(curve) = curve {
+                let t = curve.table();
+                if let Some((_, p)) = t.first() {
+                    v.extend([
+                        ("stiffness_nm_per_rad", p.k),
+                        ("loop_half_height_nm", p.h),
+                        ("a_s", p.a_s),
+                        ("n", p.n),
+                    ]);
+                }
+            }
+            v
+        }
+    }
+}

@@ -1,0 +1,790 @@
+//! Which effects to add: every candidate at every shape of its grid, fitted on the train
+//! blocks and scored on the validation blocks for its shape; then a criterion whose
+//! false-positive rate is known decides between candidates and whether to add any.
+//!
+//! The criterion is the Bayesian information criterion on the effective sample size of the
+//! residual: an effect with k parameters, searched over M shapes, is added when
+//!
+//! ```text
+//! N_eff·ln(RSS₀/RSS₁) > k·ln(N_eff) + 2·ln(M)
+//! ```
+//!
+//! with RSS on all the fit rows and N_eff = N/τ the residual's effective number of
+//! independent samples (τ its integrated autocorrelation time, [`effective_samples`]). On
+//! white residuals this is BIC, which is consistent (the chance of adding a spurious effect
+//! goes to 0 with N), and 2·ln M pays for the look-elsewhere of the grid (the largest of M χ²
+//! gains). A real plant's residual is autocorrelated — a model's mismatch is smooth — and
+//! counting its rows as independent would admit any effect that follows some of that slow
+//! structure (a ripple, a drift); counted as N_eff they must explain a real share of it. The
+//! effect must also lower the validation RMSE by `min_gain`, and later the held-out error.
+
+use super::effects::{Effect, Place, Shaped};
+use super::model::{Fitted, Signals, Transform, fit, fit_restoring_on, refit_restoring};
+use super::rows::{Problem, Role};
+use super::stats::effective_samples;
+use super::stats::{Bound, bounded_least_squares, combine};
+use super::{Declared, IdentifyError, Options, logspace};
+use crate::hysteresis::RestoringCurve;
+
+/// The candidates with their grids of shapes, and those not applicable with why.
+pub(crate) type Candidates = (Vec<(Effect, Vec<Shaped>)>, Vec<(Effect, &'static str)>);
+
+/// The candidates for the declared model and the data.
+pub(crate) fn candidates(p: &Problem, opts: &Options, dt: f64, duration: f64) -> Candidates {
+    let joint = opts.model.is_joint();
+    let (lo, hi) = p.range_of_fit_angle();
+    let x_range = hi - lo;
+    let x_max = lo.abs().max(hi.abs());
+    let has_q = p.runs.iter().all(|r| r.q.is_some());
+    let has_d = p.runs.iter().all(|r| r.d.is_some());
+    let q_all: Vec<f64> = p
+        .runs
+        .iter()
+        .flat_map(|r| r.q.clone().unwrap_or_default())
+        .collect();
+    let span = |v: &[f64]| {
+        v.iter().cloned().fold(f64::NEG_INFINITY, f64::max)
+            - v.iter().cloned().fold(f64::INFINITY, f64::min)
+    };
+    let q_range = span(&q_all);
+    let each = |e: Effect, v: Vec<f64>| -> Vec<Shaped> {
+        v.into_iter().map(|s| Shaped::new(e, s)).collect()
+    };
+    let mut not_applicable: Vec<(Effect, &'static str)> = Vec::new();
+    let mut list: Vec<(Effect, Vec<Shaped>)> = Vec::new();
+    for e in Effect::ALL {
+        if opts.model.declares().contains(&e) {
+            continue;
+        }
+        let grid: Result<Vec<Shaped>, &'static str> = match (e, joint) {
+            // The loop's state when the run starts: virgin, or after a loading or an
+            // unloading sweep (a test that starts where the last one ended).
+            (Effect::Hysteresis, true) => Ok(each(e, vec![0.0, 1.0, -1.0])),
+            (Effect::Backlash, true) => Ok(each(e, logspace(p.dead_band, 0.25 * x_range, 16))),
+            (Effect::Hysteresis | Effect::Backlash | Effect::HardStop, false) => {
+                Err("a joint-torque effect; the link equation has no spring")
+            }
+            (Effect::GeometricStiffness, false) => Err("a joint-torque effect"),
+            (Effect::StiffnessDrift, false) => Err("the link equation has no spring"),
+            (Effect::HardStop, true) => Ok(each(
+                e,
+                [0.5, 0.6, 0.7, 0.8, 0.85, 0.9, 0.95]
+                    .iter()
+                    .map(|f| f * x_max)
+                    .collect(),
+            )),
+            (Effect::GeometricStiffness, true) if opts.lever.is_none() => {
+                Err("needs a lever joint (--config) to know G(φ, d)")
+            }
+            (Effect::GeometricStiffness, true) if !has_d => Err("needs the pivot column d"),
+            (Effect::Gravity, true) if !has_q => Err("needs the link angle column q"),
+            // sin q and cos q of a link that hardly turns are a constant and a slope: an
+            // offset and a spring, not gravity.
+            (Effect::Gravity, _) if q_range < 0.5 => {
+                Err("the link angle moves less than 0.5 rad: gravity cannot be told from an offset")
+            }
+            (Effect::SensorDelay, _) => {
+                // Either path may lag: δ > 0 the torque, δ < 0 the angle.
+                let step = dt.max(opts.max_delay / 20.0);
+                let k = (opts.max_delay / step).floor() as i64;
+                Ok(each(
+                    e,
+                    (1..=k)
+                        .flat_map(|i| [i as f64 * step, -(i as f64) * step])
+                        .collect(),
+                ))
+            }
+            (Effect::Offset, _) => {
+                let times: Vec<f64> = (1..24).map(|i| duration * i as f64 / 24.0).collect();
+                let mut g: Vec<Shaped> = times.iter().map(|&t| Shaped::new(e, t)).collect();
+                if opts.model != Declared::Linear {
+                    g.push(Shaped::new(e, f64::NAN));
+                }
+                // A zero slip of the encoder reaches the torque through the declared model's
+                // slope (searched as a candidate of its own); a linear spring's slope is
+                // constant, so there it is a torque offset.
+                if opts.model == Declared::Restoring {
+                    list.push((
+                        e,
+                        times
+                            .iter()
+                            .copied()
+                            .chain([f64::NAN])
+                            .map(|t| Shaped {
+                                on: Place::Deflection,
+                                ..Shaped::new(e, t)
+                            })
+                            .collect(),
+                    ));
+                }
+                Ok(g)
+            }
+            (Effect::PeriodicRipple, _) => {
+                let angle = if has_q { q_all.clone() } else { p.angle() };
+                let range = span(&angle);
+                // At least five periods over the range: fewer is a smooth function of the
+                // angle, which any misfit of the declared model also is.
+                Ok(each(e, logspace(range / 100.0, range / 5.0, 30)))
+            }
+            _ => Ok(vec![Shaped::new(e, f64::NAN)]),
+        };
+        match grid {
+            Ok(g) if !g.is_empty() => list.push((e, g)),
+            Ok(_) => not_applicable.push((e, "the data's range is too small")),
+            Err(why) => not_applicable.push((e, why)),
+        }
+    }
+    (list, not_applicable)
+}
+
+/// What forward selection chose.
+#[derive(Debug, Clone)]
+pub(crate) struct Selection {
+    pub chosen: Vec<Shaped>,
+    /// Relative drop of the validation RMSE each one brought.
+    pub gains: Vec<f64>,
+    /// Each candidate not added: its best relative validation gain and criterion score.
+    pub refused: Vec<(Effect, f64, f64)>,
+}
+
+/// The rows the fit uses, split.
+pub(crate) struct Rows {
+    pub train: Vec<usize>,
+    pub validate: Vec<usize>,
+    pub fit: Vec<usize>,
+    pub held: Vec<usize>,
+}
+
+impl Rows {
+    pub fn of(p: &Problem) -> Self {
+        Self {
+            train: p.rows(&[Role::Train]),
+            validate: p.rows(&[Role::Validate]),
+            fit: p.rows(&[Role::Train, Role::Validate]),
+            held: p.rows(&[Role::Holdout]),
+        }
+    }
+}
+
+/// Residual sum of squares and effective sample size of a fit on `rows`.
+pub(crate) fn rss_and_neff(p: &Problem, f: &Fitted, rows: &[usize]) -> (f64, f64) {
+    let e = f.residual_on(&p.tau, rows);
+    let rss: f64 = e.iter().map(|v| v * v).sum();
+    let segs: Vec<&[f64]> = p.stretches(rows).iter().map(|&(a, b)| &e[a..b]).collect();
+    (rss, effective_samples(&segs))
+}
+
+/// The criterion's score of going from RSS₀ to a fit with `k` parameters more, searched over
+/// `m` shapes: positive when it pays (module docs).
+pub(crate) fn score(rss0: f64, rss1: f64, n_eff: f64, k: usize, m: usize) -> f64 {
+    if !(rss1 > 0.0 && rss0 > 0.0) {
+        return f64::NEG_INFINITY;
+    }
+    n_eff * (rss0 / rss1).ln() - k as f64 * n_eff.max(2.0).ln() - 2.0 * (m.max(1) as f64).ln()
+}
+
+/// Forward selection. `progress` ticks once per candidate fit.
+pub(crate) fn forward(
+    p: &mut Problem,
+    cands: &[(Effect, Vec<Shaped>)],
+    rows: &Rows,
+    opts: &Options,
+    progress: &mut dyn FnMut(),
+) -> Result<Selection, IdentifyError> {
+    let mut chosen: Vec<Shaped> = Vec::new();
+    let mut gains = Vec::new();
+    let refused;
+    loop {
+        let sig = p.signals(sig_transform(p, &chosen));
+        let now = fit(&sig, &chosen, &p.tau, &rows.train).ok_or(IdentifyError::Solve)?;
+        let val0 = now.error_on(&p.tau, &rows.validate);
+        let all = fit(&sig, &chosen, &p.tau, &rows.fit).ok_or(IdentifyError::Solve)?;
+        let (rss0, _) = rss_and_neff(p, &all, &rows.fit);
+        // (shape, validation gain, score, the loop refitted for it)
+        let mut best: Option<(Shaped, f64, f64, Option<RestoringCurve>)> = None;
+        let mut per_effect = Vec::new();
+        for (e, grid) in cands {
+            if chosen.iter().any(|c| c.effect == *e) {
+                continue;
+            }
+            let grid = if *e == Effect::Offset {
+                let e_fit = all.residual_on(&p.tau, &rows.fit);
+                let on = grid.first().map_or(Place::Torque, |c| c.on);
+                let mut g = grid.clone();
+                if on == Place::Torque || sig.slope.is_some() {
+                    g.extend(split_times(&sig, &rows.fit, &e_fit, on));
+                }
+                g
+            } else {
+                grid.clone()
+            };
+            let Some((cand, val, tried)) = search(
+                p,
+                &sig,
+                &chosen,
+                &grid,
+                &rows.train,
+                &rows.validate,
+                progress,
+            ) else {
+                per_effect.push((*e, f64::NEG_INFINITY, f64::NEG_INFINITY));
+                continue;
+            };
+            // An input effect changes what the restoring model's loop was fitted to: judge it
+            // against the loop refitted on the changed inputs, its shape searched again
+            // against that loop until the two settle (a lag and the loop trade off).
+            let mut cand = cand;
+            let refitted;
+            let (pe, val) = if p.model == Declared::Restoring
+                && (matches!(
+                    cand.effect,
+                    Effect::CoulombFriction | Effect::ViscousFriction
+                ) || (cand.effect == Effect::Offset && cand.on == Place::Torque))
+            {
+                // Friction and the loop both dissipate: the loop fitted without friction
+                // holds it all, and friction added to that loop gains nothing (a torque offset
+                // likewise shifts what the loop was fitted to). Start the loop again from what
+                // a spring with the effect leaves, then alternate.
+                let mut q = p.clone();
+                let mut trial = chosen.clone();
+                trial.push(cand);
+                q.restoring = Some(friction_seeded_loop(&q, &sig, &chosen, &cand, &rows.fit)?);
+                for _ in 0..4 {
+                    q.restoring = Some(refit_restoring(&q, &trial, &rows.fit)?);
+                }
+                let v = fit(
+                    &q.signals(sig_transform(&q, &trial)),
+                    &trial,
+                    &q.tau,
+                    &rows.train,
+                )
+                .ok_or(IdentifyError::Solve)?
+                .error_on(&q.tau, &rows.validate);
+                refitted = q;
+                (&refitted, v.min(val))
+            } else if p.model == Declared::Restoring
+                && cand.effect == Effect::Offset
+                && cand.on == Place::Deflection
+            {
+                // An encoder offset: δ from the column linearised through the loop's slope,
+                // then the loop replayed on the corrected input and refitted, δ corrected
+                // again, until it settles.
+                let mut q = p.clone();
+                let mut delta = 0.0;
+                for _ in 0..5 {
+                    let mut trial = chosen.clone();
+                    trial.push(Shaped {
+                        size: delta,
+                        ..cand
+                    });
+                    trial.push(cand);
+                    let s = q.signals(Transform {
+                        slope: true,
+                        ..Transform::of(&trial)
+                    });
+                    let f = fit(&s, &trial, &q.tau, &rows.fit).ok_or(IdentifyError::Solve)?;
+                    let scale = f.part(0).first().copied().unwrap_or(1.0);
+                    let step = f.part(trial.len()).first().copied().unwrap_or(0.0) / scale;
+                    if !step.is_finite() {
+                        break;
+                    }
+                    delta += step;
+                    trial.pop();
+                    trial.pop();
+                    trial.push(Shaped {
+                        size: delta,
+                        ..cand
+                    });
+                    q.restoring = Some(refit_restoring(&q, &trial, &rows.fit)?);
+                    if step.abs() <= 0.01 * delta.abs() {
+                        break;
+                    }
+                }
+                cand = Shaped {
+                    size: delta,
+                    ..cand
+                };
+                let mut trial = chosen.clone();
+                trial.push(cand);
+                let v = fit(
+                    &q.signals(sig_transform(&q, &trial)),
+                    &trial,
+                    &q.tau,
+                    &rows.train,
+                )
+                .ok_or(IdentifyError::Solve)?
+                .error_on(&q.tau, &rows.validate);
+                refitted = q;
+                (&refitted, v)
+            } else if p.model == Declared::Restoring && cand.is_input() {
+                let mut q = p.clone();
+                let mut v = val;
+                for _ in 0..4 {
+                    let mut trial = chosen.clone();
+                    trial.push(cand);
+                    q.restoring = Some(refit_restoring(&q, &trial, &rows.fit)?);
+                    let Some((c, e, _)) = search(
+                        &q,
+                        &sig,
+                        &chosen,
+                        &grid,
+                        &rows.train,
+                        &rows.validate,
+                        progress,
+                    ) else {
+                        break;
+                    };
+                    let settled = c.shape == cand.shape;
+                    (cand, v) = (c, e);
+                    if settled {
+                        break;
+                    }
+                }
+                refitted = q;
+                (&refitted, v)
+            } else {
+                (&*p, val)
+            };
+            // The shape found, and the effect's shape-free variants (an offset that is only a
+            // constant): the one the criterion prefers, which charges the jump time.
+            let judge = |c: Shaped, val: f64| -> Result<(Shaped, f64, f64), IdentifyError> {
+                let mut trial = chosen.clone();
+                trial.push(c);
+                // With the restoring model `pe` may hold a loop refitted for the candidate.
+                let s1 = if !std::ptr::eq(pe, &*p) {
+                    pe.signals(sig_transform(pe, &trial))
+                } else {
+                    trial_signals(pe, &sig, &chosen, &c)
+                };
+                let f1 = fit(&s1, &trial, &pe.tau, &rows.fit).ok_or(IdentifyError::Solve)?;
+                let (rss1, n_eff) = rss_and_neff(pe, &f1, &rows.fit);
+                let k = c.parameters(f1.part(trial.len()), pe.model.is_joint());
+                let sc = score(rss0, rss1, n_eff, k, tried);
+                Ok((c, val, sc))
+            };
+            let mut judged = judge(cand, val)?;
+            if cand.shape.is_finite() && cand.on == Place::Torque {
+                for c in grid
+                    .iter()
+                    .filter(|c| c.effect == Effect::Offset && c.shape.is_nan())
+                {
+                    let mut trial = chosen.clone();
+                    trial.push(*c);
+                    let s1 = if !std::ptr::eq(pe, &*p) {
+                        pe.signals(sig_transform(pe, &trial))
+                    } else {
+                        trial_signals(pe, &sig, &chosen, c)
+                    };
+                    let v = fit(&s1, &trial, &pe.tau, &rows.train)
+                        .ok_or(IdentifyError::Solve)?
+                        .error_on(&pe.tau, &rows.validate);
+                    let j = judge(*c, v)?;
+                    if j.2 > judged.2 {
+                        judged = j;
+                    }
+                }
+            }
+            let (cand, val, sc) = judged;
+            let gain = 1.0 - val / val0;
+            per_effect.push((*e, gain, sc));
+            if gain >= opts.min_gain && sc > 0.0 && best.as_ref().is_none_or(|b| sc > b.2) {
+                let curve = (!std::ptr::eq(pe, &*p))
+                    .then(|| pe.restoring.clone())
+                    .flatten();
+                best = Some((cand, gain, sc, curve));
+            }
+        }
+        let Some((cand, gain, _, curve)) = best.filter(|_| chosen.len() < opts.max_effects) else {
+            refused = per_effect;
+            break;
+        };
+        chosen.push(cand);
+        gains.push(gain);
+        if curve.is_some() {
+            p.restoring = curve;
+        }
+        if p.model == Declared::Restoring {
+            settle_restoring(p, &mut chosen, cands, rows, progress)?;
+        }
+    }
+    Ok(Selection {
+        chosen,
+        gains,
+        refused,
+    })
+}
+
+/// The jump times where a step best explains the residual `e` (indexed like `rows`): for a
+/// torque step the column 1[t ≥ t_j], for an encoder slip 1[t ≥ t_j]·dτ̂/dx; the one-column
+/// least-squares gain (Σ_{t≥t_j} e·g)² / Σ_{t≥t_j} g² at every sample time, by prefix sums.
+/// Returns the three best, at least a second apart: a coarse grid of jump times misses a
+/// step by up to half its spacing, which the validation blocks then punish.
+fn split_times(s: &Signals, rows: &[usize], e: &[f64], on: Place) -> Vec<Shaped> {
+    let g = |i: usize| match (on, &s.slope) {
+        (Place::Deflection, Some(k)) => k[i],
+        _ => 1.0,
+    };
+    let mut order: Vec<usize> = (0..rows.len()).collect();
+    order.sort_by(|&a, &b| s.t_rel[rows[a]].total_cmp(&s.t_rel[rows[b]]));
+    // Suffix sums from the end of time.
+    let (mut eg, mut gg) = (0.0, 0.0);
+    let mut gains: Vec<(f64, f64)> = Vec::with_capacity(order.len());
+    let (total_e, total_n) = (e.iter().sum::<f64>(), e.len() as f64);
+    let mut n_after = 0.0;
+    for &k in order.iter().rev() {
+        let i = rows[k];
+        eg += e[k] * g(i);
+        gg += g(i) * g(i);
+        n_after += 1.0;
+        // With a constant in the model the step competes with it: centre by the mean.
+        let centred = eg
+            - if on == Place::Torque {
+                total_e * n_after / total_n
+            } else {
+                0.0
+            };
+        let denom = if on == Place::Torque {
+            gg * (1.0 - n_after / total_n)
+        } else {
+            gg
+        };
+        if denom > 0.0 && n_after > 2.0 && n_after < total_n - 2.0 {
+            gains.push((s.t_rel[i], centred * centred / denom));
+        }
+    }
+    gains.sort_by(|a, b| b.1.total_cmp(&a.1));
+    let mut out: Vec<f64> = Vec::new();
+    for (t, _) in gains {
+        if out.iter().all(|o| (o - t).abs() > 1.0) {
+            out.push(t);
+        }
+        if out.len() == 3 {
+            break;
+        }
+    }
+    out.into_iter()
+        .map(|t| Shaped {
+            on,
+            ..Shaped::new(Effect::Offset, t)
+        })
+        .collect()
+}
+
+/// The restoring loop fitted to what a linear spring with the friction `cand` (and the chosen
+/// effects' columns) leaves unexplained: τ − friction, with the friction fitted alongside a
+/// spring k·x + c instead of the loop (which would have held it all).
+fn friction_seeded_loop(
+    p: &Problem,
+    sig: &Signals,
+    chosen: &[Shaped],
+    cand: &Shaped,
+    rows: &[usize],
+) -> Result<RestoringCurve, IdentifyError> {
+    let mut cols: Vec<Vec<f64>> = vec![sig.xs.clone(), vec![1.0; sig.xs.len()]];
+    let mut bounds = vec![Bound::Free, Bound::Free];
+    for c in chosen {
+        for (col, b) in c.columns(sig) {
+            cols.push(col);
+            bounds.push(b);
+        }
+    }
+    let own = cand.columns(sig);
+    let first_own = cols.len();
+    for (col, b) in own {
+        cols.push(col);
+        bounds.push(b);
+    }
+    let refs: Vec<&[f64]> = cols.iter().map(|c| c.as_slice()).collect();
+    let coefs = bounded_least_squares(&refs, &bounds, &p.tau, rows).ok_or(IdentifyError::Solve)?;
+    let share = combine(&refs[first_own..], &coefs[first_own..], p.tau.len());
+    let target: Vec<f64> = p.tau.iter().zip(&share).map(|(t, s)| t - s).collect();
+    fit_restoring_on(p, rows, &target, Transform::of(chosen))
+}
+
+/// The transform of `chosen`, with the declared model's slope wherever offsets may want it.
+fn sig_transform(p: &Problem, chosen: &[Shaped]) -> Transform {
+    Transform {
+        slope: p.model == Declared::Restoring,
+        ..Transform::of(chosen)
+    }
+}
+
+/// The signals a trial with `cand` added needs: new ones for an input effect, else `sig`.
+fn trial_signals(p: &Problem, sig: &Signals, chosen: &[Shaped], cand: &Shaped) -> Signals {
+    if cand.is_input() {
+        p.signals(Transform::of(chosen).with(cand))
+    } else {
+        sig.clone()
+    }
+}
+
+/// With the restoring model: refit its loop without the chosen effects' share (a lag and
+/// friction both widen it), and search the input effects' shapes again against the refitted
+/// loop, until they settle.
+fn settle_restoring(
+    p: &mut Problem,
+    chosen: &mut [Shaped],
+    cands: &[(Effect, Vec<Shaped>)],
+    rows: &Rows,
+    progress: &mut dyn FnMut(),
+) -> Result<(), IdentifyError> {
+    for _ in 0..8 {
+        p.restoring = Some(refit_restoring(p, chosen, &rows.fit)?);
+        let mut moved = false;
+        for k in 0..chosen.len() {
+            if !chosen[k].effect.is_input() {
+                continue;
+            }
+            let Some((_, grid)) = cands.iter().find(|(e, _)| *e == chosen[k].effect) else {
+                continue;
+            };
+            let others: Vec<Shaped> = chosen
+                .iter()
+                .copied()
+                .enumerate()
+                .filter(|(j, _)| *j != k)
+                .map(|(_, c)| c)
+                .collect();
+            let sig = p.signals(Transform::of(&others));
+            if let Some((c, _, _)) = search(
+                p,
+                &sig,
+                &others,
+                grid,
+                &rows.train,
+                &rows.validate,
+                progress,
+            ) && c.shape != chosen[k].shape
+            {
+                chosen[k] = c;
+                moved = true;
+            }
+        }
+        if !moved {
+            break;
+        }
+    }
+    Ok(())
+}
+
+/// The best shape on the grid (refined between the best point's neighbours when the grid is
+/// an ordered range): `chosen` plus it, fitted on `train`, scored (RMSE) on `validate`. For
+/// backlash the declared model must keep a positive stiffness. Returns the shape, its
+/// validation RMSE and how many shapes were tried.
+fn search(
+    p: &Problem,
+    sig: &Signals,
+    chosen: &[Shaped],
+    grid: &[Shaped],
+    train: &[usize],
+    validate: &[usize],
+    progress: &mut dyn FnMut(),
+) -> Option<(Shaped, f64, usize)> {
+    let trial_at = |cand: Shaped| -> Option<f64> {
+        let mut trial = chosen.to_vec();
+        trial.push(cand);
+        let own;
+        let s = if cand.is_input() {
+            own = p.signals(Transform::of(chosen).with(&cand));
+            &own
+        } else {
+            sig
+        };
+        let f = fit(s, &trial, &p.tau, train)?;
+        if cand.effect == Effect::Backlash && f.part(0).first().is_none_or(|k| *k <= 0.0) {
+            return None;
+        }
+        let e = f.error_on(&p.tau, validate);
+        e.is_finite().then_some(e)
+    };
+    let mut scored: Vec<(Shaped, f64)> = Vec::new();
+    for &cand in grid {
+        progress();
+        if let Some(err) = trial_at(cand) {
+            scored.push((cand, err));
+        }
+    }
+    let mut tried = grid.len();
+    let best = |v: &[(Shaped, f64)]| v.iter().copied().min_by(|a, b| a.1.total_cmp(&b.1));
+    // Two levels of refinement between the best point's neighbours: a shape off by a
+    // fraction of the grid's spacing leaves structure that a companion would pick up.
+    let mut same: Vec<f64> = Vec::new();
+    if let Some((b, _)) = best(&scored) {
+        same = grid
+            .iter()
+            .filter(|g| g.on == b.on && g.shape.is_finite() && g.shape.signum() == b.shape.signum())
+            .map(|g| g.shape)
+            .collect();
+    }
+    for _ in 0..2 {
+        let Some((b, _)) = best(&scored) else { break };
+        if !b.shape.is_finite() || same.len() < 3 {
+            break;
+        }
+        let below = same
+            .iter()
+            .copied()
+            .filter(|v| *v < b.shape)
+            .fold(f64::NAN, f64::max);
+        let above = same
+            .iter()
+            .copied()
+            .filter(|v| *v > b.shape)
+            .fold(f64::NAN, f64::min);
+        let lo = if below.is_finite() { below } else { b.shape };
+        let hi = if above.is_finite() { above } else { b.shape };
+        let mut next = vec![lo, b.shape, hi];
+        for j in 1..8 {
+            let shape = lo + (hi - lo) * j as f64 / 8.0;
+            next.push(shape);
+            if (shape - b.shape).abs() <= 1e-12 * b.shape.abs() || shape == 0.0 {
+                continue;
+            }
+            tried += 1;
+            let cand = Shaped { shape, ..b };
+            if let Some(err) = trial_at(cand) {
+                scored.push((cand, err));
+            }
+        }
+        same = next;
+    }
+    best(&scored).map(|(c, e)| (c, e, tried))
+}
+
+/// The half-window of the rates (see [`Options::rate_window`]): given, 20 ms for the joint
+/// models, or for the link equation the narrowest of 10–80 ms that fits the declared model,
+/// with every shape-free candidate present (an offset, friction, gravity, so that an effect
+/// the model lacks does not decide how rates are taken), within 30 % of the best on the
+/// validation blocks. A wider window flattens q̈ (5 % more inertia at 9 Hz with ±20 ms), so it
+/// is taken only where the encoder's quantisation makes the narrow one clearly worse.
+pub(crate) fn rate_window(
+    raw: &mut Problem,
+    rows: &Rows,
+    opts: &Options,
+) -> Result<f64, IdentifyError> {
+    match opts.rate_window {
+        Some(w) => Ok(w),
+        None if opts.model == Declared::Link => {
+            let dt = super::rows::sampling_step(&raw.runs);
+            let nuisance: Vec<Shaped> = candidates(raw, opts, dt, 1.0)
+                .0
+                .iter()
+                .flat_map(|(_, g)| g.iter().filter(|c| c.shape.is_nan()).copied())
+                .collect();
+            let mut scored = Vec::new();
+            for w in [0.01, 0.02, 0.04, 0.08] {
+                raw.set_rate_window(w);
+                let e = fit(
+                    &raw.signals(Transform::default()),
+                    &nuisance,
+                    &raw.tau,
+                    &rows.train,
+                )
+                .ok_or(IdentifyError::Solve)?
+                .error_on(&raw.tau, &rows.validate);
+                scored.push((w, e));
+            }
+            let best = scored.iter().map(|s| s.1).fold(f64::INFINITY, f64::min);
+            Ok(scored
+                .iter()
+                .find(|s| s.1 <= 1.3 * best)
+                .map_or(0.02, |s| s.0))
+        }
+        None => Ok(0.02),
+    }
+}
+
+/// The smallest gain of the held-out fit an effect must bring: the likelihood ratio on the
+/// held-out residual's effective samples above χ²₁'s 99 % point. Less is what noise and the
+/// rates' estimation give a fit that learned nothing.
+const HELDOUT_LR: f64 = 6.63;
+
+/// The effects kept after the held-out check.
+#[derive(Debug, Clone)]
+pub(crate) struct Vetted {
+    pub kept: Vec<Shaped>,
+    /// Each kept effect's relative validation gain.
+    pub gains: Vec<f64>,
+    /// Held-out RMSE of the declared model, then after each kept effect.
+    pub held_errs: Vec<f64>,
+    /// The restoring loop fitted for the kept effects.
+    pub curve: Option<RestoringCurve>,
+    /// Effects the held-out check vetoed.
+    pub refused: Vec<super::Refused>,
+    /// Candidates never added: (effect, best validation gain, criterion score).
+    pub not_added: Vec<(Effect, f64, f64)>,
+}
+
+/// Forward selection, then the held-out check: each chosen effect, in order, must also lower
+/// the held-out error by more than noise explains; one that does not fitted something of the
+/// fit data that the held-out data lacks. It is vetoed and the selection runs again without it
+/// (twice at most): the held-out data never chooses an effect, a shape or a coefficient, it
+/// only refuses. With the restoring model each prefix is judged with its loop refitted for it.
+/// `declared` is the declared model's fit, its held-out RMSE and its loop.
+pub(crate) fn with_heldout_veto(
+    p: &mut Problem,
+    candidates: &[(Effect, Vec<Shaped>)],
+    rows: &Rows,
+    opts: &Options,
+    declared: (&Fitted, f64, Option<RestoringCurve>),
+    progress: &mut dyn FnMut(),
+) -> Result<Vetted, IdentifyError> {
+    let (base, base_err, declared_curve) = declared;
+    let mut vetoed: Vec<Effect> = Vec::new();
+    let mut refused = Vec::new();
+    loop {
+        let allowed: Vec<(Effect, Vec<Shaped>)> = candidates
+            .iter()
+            .filter(|(e, _)| !vetoed.contains(e))
+            .cloned()
+            .collect();
+        p.restoring = declared_curve.clone();
+        let selection = forward(p, &allowed, rows, opts, progress)?;
+        let selected_curve = p.restoring.clone();
+        let mut out = Vetted {
+            kept: vec![],
+            gains: vec![],
+            held_errs: vec![base_err],
+            curve: declared_curve.clone(),
+            refused: vec![],
+            not_added: selection.refused.clone(),
+        };
+        let mut last = base.clone();
+        let mut veto = Vec::new();
+        for (c, g) in selection.chosen.iter().zip(&selection.gains) {
+            let mut trial = out.kept.clone();
+            trial.push(*c);
+            if p.model == Declared::Restoring {
+                // The loop the selection settled on, refitted for this prefix (the whole set
+                // keeps it as it is).
+                p.restoring = selected_curve.clone();
+                if trial.len() < selection.chosen.len() || !veto.is_empty() {
+                    p.restoring = Some(refit_restoring(p, &trial, &rows.fit)?);
+                }
+            }
+            let s = p.signals(Transform::of(&trial));
+            let f = fit(&s, &trial, &p.tau, &rows.fit).ok_or(IdentifyError::Solve)?;
+            let (rss0, _) = rss_and_neff(p, &last, &rows.held);
+            let (rss1, n_eff) = rss_and_neff(p, &f, &rows.held);
+            if n_eff * (rss0 / rss1).ln() > HELDOUT_LR {
+                out.kept = trial;
+                out.gains.push(*g);
+                out.held_errs.push(f.error_on(&p.tau, &rows.held));
+                out.curve = p.restoring.clone();
+                last = f;
+            } else {
+                veto.push(c.effect);
+                refused.push(super::Refused {
+                    effect: c.effect,
+                    best_gain: *g,
+                    why: "lowered the validation error but not the held-out error by more than noise explains",
+                });
+            }
+        }
+        if veto.is_empty() || vetoed.len() >= 2 {
+            out.refused = refused;
+            return Ok(out);
+        }
+        vetoed.extend(veto);
+    }
+}

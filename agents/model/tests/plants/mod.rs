@@ -1,0 +1,468 @@
+//! An independent generator of test data for `rig identify`: plants and effects written from
+//! MODEL.md §1, §2, §5 and §6.1 alone, sharing no code with `rig_model::identify` or the
+//! simulator (its own random numbers, its own Bouc-Wen integration, its own lever formulas).
+//! Each effect acts where it physically sits: a gap in series with the spring, a lag on one
+//! sensor path, a slip of the encoder's zero, a drift of the spring's stiffness.
+
+#![allow(dead_code)]
+
+use std::f64::consts::TAU;
+
+/// SplitMix64: a small, well-known generator; Gaussian numbers by Box–Muller.
+#[derive(Debug, Clone)]
+pub struct Rng(u64);
+
+impl Rng {
+    pub fn new(seed: u64) -> Self {
+        Self(seed ^ 0x9E37_79B9_7F4A_7C15)
+    }
+    pub fn next_u64(&mut self) -> u64 {
+        self.0 = self.0.wrapping_add(0x9E37_79B9_7F4A_7C15);
+        let mut z = self.0;
+        z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
+        z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
+        z ^ (z >> 31)
+    }
+    /// Uniform in [0, 1).
+    pub fn uniform(&mut self) -> f64 {
+        (self.next_u64() >> 11) as f64 / (1u64 << 53) as f64
+    }
+    pub fn range(&mut self, lo: f64, hi: f64) -> f64 {
+        lo + (hi - lo) * self.uniform()
+    }
+    pub fn gauss(&mut self) -> f64 {
+        let u1 = self.uniform().max(1e-300);
+        let u2 = self.uniform();
+        (-2.0 * u1.ln()).sqrt() * (TAU * u2).cos()
+    }
+}
+
+/// The plant a case runs on, with the model `rig identify` is told to start from.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Plant {
+    /// τ = k·x (declared: linear).
+    Linear,
+    /// Paper B's lever at a 9 mm pivot with Bouc-Wen friction in the spring (declared:
+    /// restoring).
+    Lever,
+    /// Paper A's link equation I·q̈ + N·q̇ = τ (declared: link).
+    Link,
+}
+
+impl Plant {
+    pub fn name(self) -> &'static str {
+        match self {
+            Plant::Linear => "linear spring",
+            Plant::Lever => "lever + Bouc-Wen",
+            Plant::Link => "link equation",
+        }
+    }
+}
+
+/// An effect put at its physical place, sized relative to the plant's own signals.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum Inject {
+    /// Torque-sensor zero: + c.
+    TorqueOffset,
+    /// A torque-sensor mount that slips: + c after t_j.
+    TorqueStep,
+    /// The deflection encoder's zero slips by s after t_j: the plant is unchanged, the
+    /// reading shifts.
+    EncoderSlip,
+    /// A gap of half-width r in series with the spring: the spring sees the dead zone.
+    Backlash,
+    /// Friction inside the spring (Bouc-Wen) on a spring declared linear.
+    Hysteresis,
+    /// The spring's stiffness grows by a fraction over the run.
+    StiffnessDrift,
+    /// The torque path lags the angle path by δ.
+    TorqueLag,
+    /// The angle path lags the torque path by δ.
+    AngleLag,
+    /// The spring meets a stiffer stop.
+    HardStop,
+    /// Dry friction where the part moves: F_c·sgn(rate).
+    Coulomb,
+    /// Viscous friction where the part moves: b·rate.
+    Viscous,
+    /// Gravity on the link: m·g·l·sin(q + q0).
+    Gravity,
+    /// A ripple periodic in the angle.
+    Ripple,
+}
+
+impl Inject {
+    /// The name `rig identify` should give it.
+    pub fn expected(self) -> &'static str {
+        match self {
+            Inject::TorqueOffset | Inject::TorqueStep | Inject::EncoderSlip => "offset",
+            Inject::Backlash => "backlash",
+            Inject::Hysteresis => "hysteresis",
+            Inject::StiffnessDrift => "stiffness_drift",
+            Inject::TorqueLag | Inject::AngleLag => "sensor_delay",
+            Inject::HardStop => "hard_stop",
+            Inject::Coulomb => "coulomb_friction",
+            Inject::Viscous => "viscous_friction",
+            Inject::Gravity => "gravity",
+            Inject::Ripple => "periodic_ripple",
+        }
+    }
+
+    pub fn label(self) -> &'static str {
+        match self {
+            Inject::TorqueOffset => "torque offset",
+            Inject::TorqueStep => "torque offset step",
+            Inject::EncoderSlip => "encoder zero slip",
+            Inject::Backlash => "backlash",
+            Inject::Hysteresis => "hysteresis",
+            Inject::StiffnessDrift => "stiffness drift",
+            Inject::TorqueLag => "torque lags",
+            Inject::AngleLag => "angle lags",
+            Inject::HardStop => "hard stop",
+            Inject::Coulomb => "Coulomb friction",
+            Inject::Viscous => "viscous friction",
+            Inject::Gravity => "gravity",
+            Inject::Ripple => "periodic ripple",
+        }
+    }
+
+    /// The effects that make physical sense on a plant (and that its declared model lacks).
+    pub fn on(plant: Plant) -> &'static [Inject] {
+        match plant {
+            Plant::Linear => &[
+                Inject::TorqueStep,
+                Inject::EncoderSlip,
+                Inject::Backlash,
+                Inject::Hysteresis,
+                Inject::StiffnessDrift,
+                Inject::TorqueLag,
+                Inject::HardStop,
+                Inject::Coulomb,
+                Inject::Viscous,
+                Inject::Ripple,
+            ],
+            Plant::Lever => &[
+                Inject::TorqueOffset,
+                Inject::TorqueStep,
+                Inject::EncoderSlip,
+                Inject::Backlash,
+                Inject::StiffnessDrift,
+                Inject::TorqueLag,
+                Inject::HardStop,
+                Inject::Viscous,
+                Inject::Ripple,
+            ],
+            Plant::Link => &[
+                Inject::TorqueOffset,
+                Inject::TorqueStep,
+                Inject::AngleLag,
+                Inject::TorqueLag,
+                Inject::Coulomb,
+                Inject::Gravity,
+                Inject::Ripple,
+            ],
+        }
+    }
+}
+
+/// The motion imposed on the plant.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Motion {
+    /// A sum of four sines of random frequency and phase.
+    MultiSine,
+    /// Rest, then ramps to random levels and holds, like the measured springs' tests.
+    RampHold,
+}
+
+/// One generated case.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Case {
+    pub plant: Plant,
+    pub inject: Option<Inject>,
+    pub motion: Motion,
+    /// Sampling rate [Hz].
+    pub rate_hz: f64,
+    /// Torque noise as a fraction of the peak torque.
+    pub noise: f64,
+    pub seed: u64,
+}
+
+/// A generated run in SI units: what `rig identify` reads, and the injected size.
+#[derive(Debug, Clone)]
+pub struct Data {
+    pub t: Vec<f64>,
+    /// Measured angle: deflection (joints) or link angle (link) [rad].
+    pub x: Vec<f64>,
+    pub tau: Vec<f64>,
+    /// The injected effect's main size (N·m, rad, s, fraction, by effect).
+    pub size: f64,
+}
+
+const DURATION: f64 = 30.0;
+
+/// The imposed angle and its first two derivatives at time t, from a motion's parameters.
+#[derive(Debug, Clone)]
+struct Trajectory {
+    sines: Vec<(f64, f64, f64)>,
+    /// Ramp-and-hold: (start time, duration, from, to) of each ramp.
+    ramps: Vec<(f64, f64, f64, f64)>,
+}
+
+impl Trajectory {
+    fn new(motion: Motion, amplitude: f64, f_max: f64, rng: &mut Rng) -> Self {
+        match motion {
+            Motion::MultiSine => {
+                let mut sines: Vec<(f64, f64, f64)> = (0..4)
+                    .map(|_| {
+                        let f = rng.range(0.1, f_max);
+                        (1.0 / (1.0 + 3.0 * f), TAU * f, rng.range(0.0, TAU))
+                    })
+                    .collect();
+                let peak = (0..3000)
+                    .map(|k| {
+                        let t = k as f64 * DURATION / 3000.0;
+                        sines
+                            .iter()
+                            .map(|(a, w, p)| a * (w * t + p).sin())
+                            .sum::<f64>()
+                            .abs()
+                    })
+                    .fold(0.0f64, f64::max);
+                for s in &mut sines {
+                    s.0 *= amplitude / peak;
+                }
+                Self {
+                    sines,
+                    ramps: vec![],
+                }
+            }
+            Motion::RampHold => {
+                let mut ramps = Vec::new();
+                let mut t = rng.range(2.0, 4.0);
+                let mut level = 0.0;
+                let mut sign = if rng.uniform() < 0.5 { 1.0 } else { -1.0 };
+                while t < DURATION - 2.0 {
+                    let to = sign * amplitude * rng.range(0.5, 1.0);
+                    let dur = rng.range(1.5, 4.0);
+                    ramps.push((t, dur, level, to));
+                    level = to;
+                    sign = -sign;
+                    t += dur + rng.range(0.5, 2.5);
+                }
+                Self {
+                    sines: vec![],
+                    ramps,
+                }
+            }
+        }
+    }
+
+    /// (x, ẋ, ẍ) at t. Ramps are quintic smoothsteps (continuous acceleration).
+    fn at(&self, t: f64) -> (f64, f64, f64) {
+        if !self.sines.is_empty() {
+            return self
+                .sines
+                .iter()
+                .fold((0.0, 0.0, 0.0), |(x, v, a), (amp, w, p)| {
+                    let ph = w * t + p;
+                    (
+                        x + amp * ph.sin(),
+                        v + amp * w * ph.cos(),
+                        a - amp * w * w * ph.sin(),
+                    )
+                });
+        }
+        let mut out = (0.0, 0.0, 0.0);
+        for &(t0, dur, from, to) in &self.ramps {
+            if t < t0 {
+                break;
+            }
+            let u = ((t - t0) / dur).min(1.0);
+            let s = u * u * u * (10.0 - 15.0 * u + 6.0 * u * u);
+            let ds = if u < 1.0 {
+                30.0 * u * u * (1.0 - u) * (1.0 - u) / dur
+            } else {
+                0.0
+            };
+            let dds = if u < 1.0 {
+                60.0 * u * (1.0 - u) * (1.0 - 2.0 * u) / (dur * dur)
+            } else {
+                0.0
+            };
+            out = (from + (to - from) * s, (to - from) * ds, (to - from) * dds);
+        }
+        out
+    }
+}
+
+/// Paper B's lever (MODEL.md §1) at d_a: exact static torque of the spring through the lever.
+fn lever_torque(phi: f64) -> f64 {
+    let (p, d_a, k_alpha) = (0.0315, 0.0096 + 0.009, 978.8e-3 / 43f64.to_radians());
+    let beta = (p * phi.sin()).atan2(p * phi.cos() - d_a);
+    let alpha = beta - phi;
+    let l = ((p * phi.cos() - d_a).powi(2) + (p * phi.sin()).powi(2)).sqrt();
+    let g = d_a * (alpha + phi).cos() / l;
+    g * k_alpha * alpha
+}
+
+/// A Bouc-Wen element (n = 1) in deflection space: ż = ẋ·(A − (β·sgn(ẋ·z) + γ)·|z|), with
+/// yield z_max = A/(β + γ); integrated with substeps.
+#[derive(Debug, Clone, Copy)]
+struct BoucWen {
+    z: f64,
+    beta: f64,
+    gamma: f64,
+}
+
+impl BoucWen {
+    fn new(z_max: f64) -> Self {
+        Self {
+            z: 0.0,
+            beta: 0.5 / z_max,
+            gamma: 0.5 / z_max,
+        }
+    }
+    fn step(&mut self, dx: f64) {
+        let n = 20;
+        let h = dx / n as f64;
+        for _ in 0..n {
+            let s = if h * self.z >= 0.0 { 1.0 } else { -1.0 };
+            self.z += h * (1.0 - (self.beta * s + self.gamma) * self.z.abs());
+        }
+    }
+}
+
+/// Generates one run of a case. `variant` changes the motion's random draw (0 for the fit
+/// run, 1 for the held-out run) but not the plant or the effect's size.
+pub fn generate(c: &Case, variant: u64) -> Data {
+    let mut rng = Rng::new(c.seed.wrapping_mul(7919).wrapping_add(variant * 104_729));
+    let mut size_rng = Rng::new(c.seed.wrapping_mul(31337) ^ 0xA5A5);
+    let link = c.plant == Plant::Link;
+    let amplitude = if link { 1.0 } else { 0.06 };
+    let traj = Trajectory::new(c.motion, amplitude, if link { 1.5 } else { 1.0 }, &mut rng);
+    // The plant runs on a fine grid (10 kHz), sensors sample it at the case's rate.
+    let fine = 10_000.0;
+    let n_fine = (DURATION * fine) as usize + 1;
+    let k_lin = 2.0; // N·m/rad of the linear spring
+    let (inertia, damping) = (0.05, 0.4);
+    let inject = c.inject;
+    // Peak torque of the clean plant, to size effects and noise (fixed per case, so that the
+    // fit and held-out runs carry the same effect).
+    let peak = match c.plant {
+        Plant::Linear => k_lin * amplitude,
+        Plant::Lever => lever_torque(amplitude),
+        // The same for every run of a case: a 0.5 Hz swing of the link's amplitude.
+        Plant::Link => {
+            let w = TAU * 0.5;
+            inertia * amplitude * w * w + damping * amplitude * w
+        }
+    };
+    let t_jump = size_rng.range(9.0, 21.0);
+    let size = match inject {
+        None => 0.0,
+        Some(Inject::TorqueOffset) => 0.08 * peak * sign(&mut size_rng),
+        Some(Inject::TorqueStep) => 0.08 * peak * sign(&mut size_rng),
+        Some(Inject::EncoderSlip) => 0.08 * amplitude * sign(&mut size_rng),
+        Some(Inject::Backlash) => size_rng.range(0.04, 0.08) * amplitude,
+        Some(Inject::Hysteresis) => 0.3,
+        Some(Inject::StiffnessDrift) => size_rng.range(0.15, 0.3),
+        Some(Inject::TorqueLag | Inject::AngleLag) => size_rng.range(0.01, 0.03),
+        Some(Inject::HardStop) => size_rng.range(0.6, 0.75) * amplitude,
+        Some(Inject::Coulomb) => 0.06 * peak,
+        Some(Inject::Viscous) => 0.06 * peak,
+        Some(Inject::Gravity) => 0.3 * peak,
+        Some(Inject::Ripple) => 0.05 * peak,
+    };
+    let ripple_period = amplitude / size_rng.range(3.0, 6.0);
+    let ripple_phase = size_rng.range(0.0, TAU);
+    let q0 = size_rng.range(-0.5, 0.5);
+    // The rate scale for viscous friction, b·rate_ref = size: a 0.5 Hz swing's rms rate.
+    let rate_rms = amplitude * TAU * 0.5 / 2f64.sqrt();
+    let mut bw = BoucWen::new(0.15 * amplitude);
+    let mut bw_prev_x = 0.0;
+    let mut tau_fine = Vec::with_capacity(n_fine);
+    let mut x_fine = Vec::with_capacity(n_fine);
+    for k in 0..n_fine {
+        let t = k as f64 / fine;
+        let (x, v, a) = traj.at(t);
+        // What the spring sees of the imposed motion.
+        let xs = match inject {
+            Some(Inject::Backlash) => (x.abs() - size).max(0.0) * x.signum(),
+            _ => x,
+        };
+        let tau = match c.plant {
+            Plant::Linear => {
+                let mut tau = k_lin * xs;
+                if inject == Some(Inject::Hysteresis) {
+                    bw.step(xs - bw_prev_x);
+                    bw_prev_x = xs;
+                    // A share `size` of the stiffness through the friction element: a loop
+                    // of about ±size·k·z_max.
+                    tau = (1.0 - size) * k_lin * xs + size * k_lin * bw.z;
+                }
+                tau
+            }
+            Plant::Lever => {
+                bw.step(xs - bw_prev_x);
+                bw_prev_x = xs;
+                // 80 % elastic through the lever, 20 % through the friction element.
+                0.8 * lever_torque(xs) + 0.2 * (lever_torque(amplitude) / amplitude) * bw.z
+            }
+            Plant::Link => inertia * a + damping * v,
+        };
+        let tau = match inject {
+            Some(Inject::StiffnessDrift) => tau * (1.0 + size * t / DURATION),
+            Some(Inject::HardStop) => {
+                tau + 4.0 * (peak / amplitude) * ((xs.abs() - size).max(0.0) * xs.signum())
+            }
+            Some(Inject::Coulomb) => tau + size * if v.abs() > 1e-6 { v.signum() } else { 0.0 },
+            Some(Inject::Viscous) => tau + size / rate_rms * v,
+            Some(Inject::Gravity) => tau + size * (x + q0).sin(),
+            Some(Inject::Ripple) => tau + size * (TAU * x / ripple_period + ripple_phase).sin(),
+            _ => tau,
+        };
+        tau_fine.push(tau);
+        x_fine.push(x);
+    }
+    let at = |v: &[f64], t: f64| -> f64 {
+        let u = (t * fine).clamp(0.0, (n_fine - 1) as f64);
+        let i = (u.floor() as usize).min(n_fine - 2);
+        let w = u - i as f64;
+        v[i] * (1.0 - w) + v[i + 1] * w
+    };
+    let n = (DURATION * c.rate_hz) as usize;
+    let resolution = TAU / 16384.0 / if link { 1.0 } else { 4.0 };
+    let mut out = Data {
+        t: Vec::with_capacity(n),
+        x: Vec::with_capacity(n),
+        tau: Vec::with_capacity(n),
+        size,
+    };
+    for i in 0..n {
+        // A little jitter on the sampling instants, as a real bus has.
+        let t = (i as f64 + 0.1 * rng.uniform()) / c.rate_hz;
+        let (t_tau, t_x) = match inject {
+            Some(Inject::TorqueLag) => (t - size, t),
+            Some(Inject::AngleLag) => (t, t - size),
+            _ => (t, t),
+        };
+        let mut x = at(&x_fine, t_x);
+        let mut tau = at(&tau_fine, t_tau);
+        match inject {
+            Some(Inject::TorqueOffset) => tau += size,
+            Some(Inject::TorqueStep) if t >= t_jump => tau += size,
+            Some(Inject::EncoderSlip) if t >= t_jump => x += size,
+            _ => {}
+        }
+        tau += c.noise * peak * rng.gauss();
+        x = (x / resolution).round() * resolution;
+        out.t.push(t);
+        out.x.push(x);
+        out.tau.push(tau);
+    }
+    out
+}
+
+fn sign(rng: &mut Rng) -> f64 {
+    if rng.uniform() < 0.5 { -1.0 } else { 1.0 }
+}
