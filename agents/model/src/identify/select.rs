@@ -252,14 +252,7 @@ pub(crate) fn forward(
                 for _ in 0..4 {
                     q.restoring = Some(refit_restoring(&q, &trial, &rows.fit)?);
                 }
-                let v = fit(
-                    &q.signals(sig_transform(&q, &trial)),
-                    &trial,
-                    &q.tau,
-                    &rows.train,
-                )
-                .ok_or(IdentifyError::Solve)?
-                .error_on(&q.tau, &rows.validate);
+                let v = validation_error(&q, &trial, rows)?;
                 refitted = q;
                 (&refitted, v.min(val))
             } else if p.model == Declared::Restoring
@@ -306,14 +299,7 @@ pub(crate) fn forward(
                 };
                 let mut trial = chosen.clone();
                 trial.push(cand);
-                let v = fit(
-                    &q.signals(sig_transform(&q, &trial)),
-                    &trial,
-                    &q.tau,
-                    &rows.train,
-                )
-                .ok_or(IdentifyError::Solve)?
-                .error_on(&q.tau, &rows.validate);
+                let v = validation_error(&q, &trial, rows)?;
                 refitted = q;
                 (&refitted, v)
             } else if p.model == Declared::Restoring && cand.is_input() {
@@ -499,6 +485,18 @@ fn friction_seeded_loop(
     let share = combine(&refs[first_own..], &coefs[first_own..], p.tau.len());
     let target: Vec<f64> = p.tau.iter().zip(&share).map(|(t, s)| t - s).collect();
     fit_restoring_on(p, rows, &target, Transform::of(chosen))
+}
+
+/// The validation RMSE of `trial` fitted on the train blocks.
+fn validation_error(q: &Problem, trial: &[Shaped], rows: &Rows) -> Result<f64, IdentifyError> {
+    Ok(fit(
+        &q.signals(sig_transform(q, trial)),
+        trial,
+        &q.tau,
+        &rows.train,
+    )
+    .ok_or(IdentifyError::Solve)?
+    .error_on(&q.tau, &rows.validate))
 }
 
 /// The transform of `chosen`, with the declared model's slope wherever offsets may want it.

@@ -92,33 +92,16 @@ pub fn shifted(t: &[f64], x: &[f64], delay: f64) -> Vec<f64> {
         return x.to_vec();
     }
     // The times t − delay increase with t: walk one index along instead of searching.
-    let n = t.len().min(x.len());
     let mut k = 0usize;
     t.iter()
-        .map(|&ti| {
-            let at = ti - delay;
-            if n == 0 {
-                return f64::NAN;
-            }
-            if at <= t[0] {
-                return x[0];
-            }
-            if at >= t[n - 1] {
-                return x[n - 1];
-            }
-            while k + 1 < n && t[k + 1] <= at {
-                k += 1;
-            }
-            let (t0, t1) = (t[k], t[k + 1]);
-            let w = if t1 > t0 { (at - t0) / (t1 - t0) } else { 0.0 };
-            x[k] + w * (x[k + 1] - x[k])
-        })
+        .map(|&ti| interp_walk(t, x, ti - delay, &mut k))
         .collect()
 }
 
-/// Linear interpolation of (t, x) at `at`; `t` increasing; held at the ends.
-pub fn interp(t: &[f64], x: &[f64], at: f64) -> f64 {
-    let n = t.len();
+/// Linear interpolation of (t, x) at `at`, held at the ends, starting the search for the
+/// segment at `k` and leaving `k` there for the next, later `at`.
+fn interp_walk(t: &[f64], x: &[f64], at: f64, k: &mut usize) -> f64 {
+    let n = t.len().min(x.len());
     if n == 0 {
         return f64::NAN;
     }
@@ -128,10 +111,18 @@ pub fn interp(t: &[f64], x: &[f64], at: f64) -> f64 {
     if at >= t[n - 1] {
         return x[n - 1];
     }
-    let k = t.partition_point(|&v| v <= at);
-    let (t0, t1) = (t[k - 1], t[k]);
+    while *k + 1 < n && t[*k + 1] <= at {
+        *k += 1;
+    }
+    let (t0, t1) = (t[*k], t[*k + 1]);
     let w = if t1 > t0 { (at - t0) / (t1 - t0) } else { 0.0 };
-    x[k - 1] + w * (x[k] - x[k - 1])
+    x[*k] + w * (x[*k + 1] - x[*k])
+}
+
+/// Linear interpolation of (t, x) at `at`; `t` increasing; held at the ends.
+pub fn interp(t: &[f64], x: &[f64], at: f64) -> f64 {
+    let mut k = t.partition_point(|&v| v <= at).saturating_sub(1);
+    interp_walk(t, x, at, &mut k)
 }
 
 /// Resamples (t, x) onto a uniform grid of step `dt`, splitting at gaps longer than

@@ -26,6 +26,17 @@ pub fn mean(e: &[f64]) -> f64 {
     e.iter().sum::<f64>() / e.len() as f64
 }
 
+/// Each column's RMS over `rows` (1 where it is 0 or not finite): the scale that puts
+/// features in rad and in N·m side by side.
+fn column_scales(cols: &[&[f64]], rows: &[usize]) -> Vec<f64> {
+    cols.iter()
+        .map(|c| {
+            let s = (rows.iter().map(|&i| c[i] * c[i]).sum::<f64>() / rows.len() as f64).sqrt();
+            if s > 0.0 && s.is_finite() { s } else { 1.0 }
+        })
+        .collect()
+}
+
 /// Least squares `y ≈ Σ c_j·cols[j]` over the rows in `rows`. Columns are scaled to unit RMS
 /// first, so features in rad and in N·m sit side by side; the solve is by SVD, so collinear
 /// columns give the minimum-norm answer instead of failing. `None` when nothing is finite.
@@ -34,13 +45,7 @@ pub fn least_squares(cols: &[&[f64]], y: &[f64], rows: &[usize]) -> Option<Vec<f
     if p == 0 || rows.is_empty() {
         return Some(vec![0.0; p]);
     }
-    let scale: Vec<f64> = cols
-        .iter()
-        .map(|c| {
-            let s = (rows.iter().map(|&i| c[i] * c[i]).sum::<f64>() / rows.len() as f64).sqrt();
-            if s > 0.0 && s.is_finite() { s } else { 1.0 }
-        })
-        .collect();
+    let scale = column_scales(cols, rows);
     let a = DMatrix::from_fn(rows.len(), p, |r, c| cols[c][rows[r]] / scale[c]);
     let b = DVector::from_iterator(rows.len(), rows.iter().map(|&i| y[i]));
     let svd = a.svd(true, true);
@@ -79,13 +84,7 @@ pub fn bounded_least_squares(
             _ => 1.0,
         })
         .collect();
-    let scale: Vec<f64> = cols
-        .iter()
-        .map(|c| {
-            let s = (rows.iter().map(|&i| c[i] * c[i]).sum::<f64>() / rows.len() as f64).sqrt();
-            if s > 0.0 && s.is_finite() { s } else { 1.0 }
-        })
-        .collect();
+    let scale = column_scales(cols, rows);
     let mut g = DMatrix::<f64>::zeros(p, p);
     let mut b = DVector::<f64>::zeros(p);
     let mut row = vec![0.0; p];
