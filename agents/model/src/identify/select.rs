@@ -248,7 +248,11 @@ pub(crate) fn forward(
                 let mut q = p.clone();
                 let mut trial = chosen.clone();
                 trial.push(cand);
-                q.restoring = Some(friction_seeded_loop(&q, &sig, &chosen, &cand, &rows.fit)?);
+                // (An offset starts from the loop as it is: seeded from a spring with an
+                // intercept, a loop over a one-sided motion takes part of it as its height.)
+                if cand.effect != Effect::Offset {
+                    q.restoring = Some(friction_seeded_loop(&q, &sig, &chosen, &cand, &rows.fit)?);
+                }
                 for _ in 0..4 {
                     q.restoring = Some(refit_restoring(&q, &trial, &rows.fit)?);
                 }
