@@ -230,9 +230,8 @@ pub(crate) fn forward(
                 per_effect.push((*e, f64::NEG_INFINITY, f64::NEG_INFINITY));
                 continue;
             };
-            // An input effect changes what the restoring model's loop was fitted to: judge it
-            // against the loop refitted on the changed inputs, its shape searched again
-            // against that loop until the two settle (a lag and the loop trade off).
+            // With the restoring model a candidate is judged against the loop refitted for it
+            // (`pe`): the loop was fitted with the effect's share in its data.
             let mut cand = cand;
             let refitted;
             let (pe, val) = if p.model == Declared::Restoring
@@ -307,6 +306,8 @@ pub(crate) fn forward(
                 refitted = q;
                 (&refitted, v)
             } else if p.model == Declared::Restoring && cand.is_input() {
+                // A lag or a gap changes what the loop sees: the loop refitted on the changed
+                // inputs, the shape searched again against it, until the two settle.
                 let mut q = p.clone();
                 let mut v = val;
                 for _ in 0..4 {
