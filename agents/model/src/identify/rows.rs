@@ -81,12 +81,11 @@ pub fn find_rest(r: &Run, resolution: f64) -> Option<Rest> {
     if end < 10 || t_end - t0 < 0.5 {
         return None;
     }
-    let mean = |v: &[f64]| v.iter().sum::<f64>() / v.len() as f64;
     Some(Rest {
         end,
         window_s: r.t[end - 1] - t0,
-        torque: mean(&r.tau[..end]),
-        deflection: mean(&phi[..end]),
+        torque: super::stats::mean(&r.tau[..end]),
+        deflection: super::stats::mean(&phi[..end]),
         noise: std(&r.tau[..end]),
     })
 }

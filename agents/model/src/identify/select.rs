@@ -338,15 +338,20 @@ pub(crate) fn forward(
             };
             // The shape found, and the effect's shape-free variants (an offset that is only a
             // constant): the one the criterion prefers, which charges the jump time.
-            let judge = |c: Shaped, val: f64| -> Result<(Shaped, f64, f64), IdentifyError> {
+            // The signals of `chosen` plus `c`: with the restoring model `pe` may hold a loop
+            // refitted for the candidate.
+            let signals_with = |c: &Shaped| -> (Vec<Shaped>, Signals) {
                 let mut trial = chosen.clone();
-                trial.push(c);
-                // With the restoring model `pe` may hold a loop refitted for the candidate.
-                let s1 = if !std::ptr::eq(pe, &*p) {
+                trial.push(*c);
+                let s = if !std::ptr::eq(pe, &*p) {
                     pe.signals(sig_transform(pe, &trial))
                 } else {
-                    trial_signals(pe, &sig, &chosen, &c)
+                    trial_signals(pe, &sig, &chosen, c)
                 };
+                (trial, s)
+            };
+            let judge = |c: Shaped, val: f64| -> Result<(Shaped, f64, f64), IdentifyError> {
+                let (trial, s1) = signals_with(&c);
                 let f1 = fit(&s1, &trial, &pe.tau, &rows.fit).ok_or(IdentifyError::Solve)?;
                 let (rss1, n_eff) = rss_and_neff(pe, &f1, &rows.fit);
                 let k = c.parameters(f1.part(trial.len()), pe.model.is_joint());
@@ -359,13 +364,7 @@ pub(crate) fn forward(
                     .iter()
                     .filter(|c| c.effect == Effect::Offset && c.shape.is_nan())
                 {
-                    let mut trial = chosen.clone();
-                    trial.push(*c);
-                    let s1 = if !std::ptr::eq(pe, &*p) {
-                        pe.signals(sig_transform(pe, &trial))
-                    } else {
-                        trial_signals(pe, &sig, &chosen, c)
-                    };
+                    let (trial, s1) = signals_with(c);
                     let v = fit(&s1, &trial, &pe.tau, &rows.train)
                         .ok_or(IdentifyError::Solve)?
                         .error_on(&pe.tau, &rows.validate);
