@@ -6,7 +6,7 @@
 use std::path::{Path, PathBuf};
 
 use clap::ValueEnum;
-use rig_model::identify::{Declared, Effect, Holdout, Identified, Options, Run, identify};
+use rig_model::identify::{Declared, Effect, Holdout, Identified, Options, Run, Tare, identify};
 use serde_json::{Map, Value, json};
 
 use crate::error::CliError;
@@ -252,6 +252,23 @@ fn effect_params_json(e: &rig_model::identify::Found) -> Value {
     v
 }
 
+/// How a file's rest compares with the first file's.
+fn zeros_why(t: &Tare) -> String {
+    if t.rest_shift_nm == 0.0 {
+        "the reference".into()
+    } else if t.within_loop {
+        format!(
+            "rest {} N·m off the first file's, within the loop it traced there: friction may hold the spring there, part of this may be load",
+            sig(t.rest_shift_nm)
+        )
+    } else {
+        format!(
+            "rest {} N·m off the first file's, outside its loop there: a zero moved",
+            sig(t.rest_shift_nm)
+        )
+    }
+}
+
 /// The tare per file: the rest it found and the zeros subtracted.
 fn tare_json(res: &Identified, off: bool) -> Value {
     if off {
@@ -269,10 +286,13 @@ fn tare_json(res: &Identified, off: bool) -> Value {
             .map(|t| {
                 json!({
                     "file": t.run,
+                    "from_s": num(t.from_s),
                     "window_s": num(t.window_s),
                     "torque_zero": num(t.torque_zero),
                     "deflection_zero": num(t.deflection_zero),
                     "torque_noise": num(t.torque_noise),
+                    "rest_shift_nm": num(t.rest_shift_nm),
+                    "within_loop": t.within_loop,
                 })
             })
             .collect(),
@@ -399,11 +419,13 @@ fn print_summary(res: &Identified, notes: &[String]) {
     );
     for t in &res.tare {
         println!(
-            "  tare: {} at rest for {:.1} s: torque zero {} N·m, deflection zero {} rad",
+            "  tare: {} at rest for {:.1} s from {:.2} s: torque zero {} N·m, deflection zero {} rad ({})",
             t.run,
             t.window_s,
+            t.from_s,
             sig(t.torque_zero),
-            sig(t.deflection_zero)
+            sig(t.deflection_zero),
+            zeros_why(t)
         );
     }
     if let Some(note) = &res.tare_note {
@@ -468,14 +490,16 @@ fn markdown(
         sig(res.after.mae)
     ));
     if !res.tare.is_empty() {
-        s.push_str("## Tare (zeros at rest, subtracted from every file)\n\n| file | rest [s] | torque zero [N·m] | deflection zero [rad] |\n|---|---|---|---|\n");
+        s.push_str("## Tare (zeros at rest, subtracted from every file)\n\n| file | rest from [s] | rest for [s] | torque zero [N·m] | deflection zero [rad] | rest against the first file |\n|---|---|---|---|---|---|\n");
         for t in &res.tare {
             s.push_str(&format!(
-                "| `{}` | {:.1} | {} | {} |\n",
+                "| `{}` | {:.2} | {:.1} | {} | {} | {} |\n",
                 t.run,
+                t.from_s,
                 t.window_s,
                 sig(t.torque_zero),
-                sig(t.deflection_zero)
+                sig(t.deflection_zero),
+                zeros_why(t)
             ));
         }
         s.push_str(&format!(

@@ -271,6 +271,36 @@ pub(crate) fn logspace(lo: f64, hi: f64, n: usize) -> Vec<f64> {
         .collect()
 }
 
+/// What the runs' rests are compared by (see [`rows::compare_rests`]): each run's mean residual
+/// over its rest under the declared model fitted untared (`before`), and the first run's
+/// deflection and residual at every sample.
+fn rest_residuals(
+    raw: &Problem,
+    before: &model::Fitted,
+    tare: &[Tare],
+) -> (Vec<f64>, Vec<(f64, f64)>) {
+    let rows_of = |k: usize, a: usize, b: usize| -> Vec<usize> {
+        let first = raw.bounds[k].0;
+        (first + a..first + b).collect()
+    };
+    let at_rest = tare
+        .iter()
+        .enumerate()
+        .map(|(k, t)| stats::mean(&before.residual_on(&raw.tau, &rows_of(k, t.rest.0, t.rest.1))))
+        .collect();
+    let r = &raw.runs[0];
+    let e = before.residual_on(&raw.tau, &rows_of(0, 0, r.t.len()));
+    let reference = r
+        .phi
+        .as_deref()
+        .unwrap_or(&[])
+        .iter()
+        .copied()
+        .zip(e)
+        .collect();
+    (at_rest, reference)
+}
+
 /// Identifies what the declared model lacks. `progress(done, total)` is called as candidate
 /// fits finish (total is an estimate: rounds are not known in advance).
 pub fn identify(
@@ -314,11 +344,17 @@ pub fn identify(
     let e_before = before.residual_on(&raw.tau, &rows.held);
 
     // Tare: each run's zeros from the rest it starts with.
-    let (tare, tare_note) = if opts.tare && opts.model.is_joint() {
+    let (mut tare, tare_note) = if opts.tare && opts.model.is_joint() {
         rows::tare(&raw.runs)
     } else {
         (vec![], None)
     };
+    if !tare.is_empty() {
+        let (rest_residual, reference) = rest_residuals(&raw, &before, &tare);
+        let (lo, hi) = raw.range_of_fit_angle();
+        let near = (3.0 * raw.resolution).max(0.01 * (hi - lo));
+        rows::compare_rests(&mut tare, &rest_residual, &reference, near);
+    }
     // The tare is every run's or none: run k's is tare[k], fit runs first.
     let tared = |runs: &[Run], first: usize| -> Vec<Run> {
         runs.iter()

@@ -26,6 +26,12 @@ pub fn mean(e: &[f64]) -> f64 {
     e.iter().sum::<f64>() / e.len() as f64
 }
 
+/// Standard deviation of `e` about its mean (population).
+pub fn std(e: &[f64]) -> f64 {
+    let m = mean(e);
+    rmse(&e.iter().map(|v| v - m).collect::<Vec<_>>())
+}
+
 /// Each column's RMS over `rows` (1 where it is 0 or not finite): the scale that puts
 /// features in rad and in N·m side by side.
 fn column_scales(cols: &[&[f64]], rows: &[usize]) -> Vec<f64> {
