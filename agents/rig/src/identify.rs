@@ -74,8 +74,8 @@ pub struct Args {
     no_tare: bool,
     /// Half-window of the centred local fits that give rates and accelerations [ms].
     /// Default: 20 for the joint-torque models; for the link equation the narrowest of 10, 20,
-    /// 40, 80 that fits it within 30 % of the best on the validation blocks (narrow passes the encoder's
-    /// quantisation into q̈, wide flattens fast motion: 5 % less inertia at 9 Hz with 20)
+    /// 40, 80 that fits it within 5 % of the best on the validation blocks (narrow passes the
+    /// encoder's quantisation into q̈, wide flattens fast motion)
     #[arg(long, value_name = "MS")]
     rate_window_ms: Option<f64>,
     /// Where to write the JSON report (the .md and .png files go beside it)

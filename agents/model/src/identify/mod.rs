@@ -102,10 +102,10 @@ pub struct Options {
     /// Largest sensor delay searched, either way [s].
     pub max_delay: f64,
     /// Half-window of the local fits giving rates [s]; `None`: the narrowest of 10, 20, 40 and
-    /// 80 ms whose fit of the declared model (with the shape-free candidates) on the
-    /// validation blocks is within 30 % of the best (a narrow window passes the encoder's
-    /// quantisation into q̈, a wide one flattens fast motion; the joint models' torque does
-    /// not depend on rates, so for them it stays at 20 ms).
+    /// 80 ms whose fit of the declared model (with the shape-free candidates) is within 5 % of
+    /// the best on the validation blocks (a narrow window passes the encoder's quantisation into q̈, a wide
+    /// one flattens fast motion; the joint models' torque does not depend on rates, so for
+    /// them it stays at 20 ms).
     pub rate_window: Option<f64>,
     /// Take each run's torque and deflection zeros from the rest it starts with (joint-torque
     /// models; the link equation's torque at rest is gravity's, so it is never tared).

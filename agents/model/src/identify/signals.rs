@@ -6,48 +6,60 @@
 /// samples within `half_window` seconds of each one (at least two on each side where the
 /// series allows). Works on irregular sampling; quantised signals come out smooth.
 pub fn local_rates(t: &[f64], x: &[f64], half_window: f64) -> (Vec<f64>, Vec<f64>) {
+    local_rates_of_degree(t, x, half_window, 2)
+}
+
+/// As [`local_rates`] with a local polynomial of `degree` (2 to 6). Over a centred half-window
+/// h a quadratic flattens the acceleration of a sine of angular frequency ω by a share growing
+/// as (ωh)², a quartic as (ωh)⁴, at the price of more noise for the same window.
+pub fn local_rates_of_degree(
+    t: &[f64],
+    x: &[f64],
+    half_window: f64,
+    degree: usize,
+) -> (Vec<f64>, Vec<f64>) {
     let n = t.len();
+    let degree = degree.clamp(2, 6);
+    let m = degree + 1;
     let (mut v, mut a) = (vec![0.0; n], vec![0.0; n]);
-    if n < 3 {
+    let side = m.div_ceil(2);
+    if n < m {
         return (v, a);
     }
     let (mut lo, mut hi) = (0usize, 0usize);
+    let h = half_window.max(1e-12);
+    let mut normal = nalgebra::DMatrix::<f64>::zeros(m, m);
+    let mut rhs = nalgebra::DVector::<f64>::zeros(m);
+    let mut p = vec![0.0; m];
     for i in 0..n {
-        while lo < i.saturating_sub(2) && t[i] - t[lo] > half_window {
+        while lo < i.saturating_sub(side) && t[i] - t[lo] > half_window {
             lo += 1;
         }
-        while hi + 1 < n && (t[hi + 1] - t[i] <= half_window || hi < i + 2) {
+        while hi + 1 < n && (t[hi + 1] - t[i] <= half_window || hi < i + side) {
             hi += 1;
         }
-        // Normal equations of x ≈ c0 + c1·s + c2·s², s = t_j − t_i, scaled by the window.
-        let h = half_window.max(1e-12);
-        let mut m = [[0.0f64; 3]; 3];
-        let mut r = [0.0f64; 3];
+        // Normal equations of x ≈ Σ c_k·s^k, s = (t_j − t_i)/h.
+        normal.fill(0.0);
+        rhs.fill(0.0);
         for j in lo..=hi {
             let s = (t[j] - t[i]) / h;
-            let p = [1.0, s, s * s];
-            for (row, pr) in m.iter_mut().zip(p) {
-                for (e, pc) in row.iter_mut().zip(p) {
-                    *e += pr * pc;
-                }
+            p[0] = 1.0;
+            for k in 1..m {
+                p[k] = p[k - 1] * s;
             }
-            for (e, pr) in r.iter_mut().zip(p) {
-                *e += pr * x[j];
+            for r in 0..m {
+                for c in 0..m {
+                    normal[(r, c)] += p[r] * p[c];
+                }
+                rhs[r] += p[r] * x[j];
             }
         }
-        if let Some(c) = solve3(m, r) {
+        if let Some(c) = normal.clone().lu().solve(&rhs) {
             v[i] = c[1] / h;
             a[i] = 2.0 * c[2] / (h * h);
         }
     }
     (v, a)
-}
-
-/// Solves a 3×3 system; `None` if singular.
-fn solve3(m: [[f64; 3]; 3], r: [f64; 3]) -> Option<[f64; 3]> {
-    let a = nalgebra::Matrix3::from_fn(|i, j| m[i][j]);
-    let x = a.lu().solve(&nalgebra::Vector3::from(r))?;
-    Some([x[0], x[1], x[2]])
 }
 
 /// Direction of motion from a centred (zero-lag) rate: sgn(ẋ) where |ẋ| exceeds `still`,
@@ -204,6 +216,44 @@ mod tests {
             assert!((v[i] - (2.0 - 10.0 * t[i])).abs() < 1e-8, "{i}: {}", v[i]);
             assert!((a[i] + 10.0).abs() < 1e-6, "{i}: {}", a[i]);
         }
+    }
+
+    #[test]
+    fn a_local_quartic_is_exact_on_a_quartic_and_flattens_a_fast_sine_far_less_than_a_quadratic() {
+        let t: Vec<f64> = (0..400)
+            .map(|k| k as f64 * 0.005 + 0.001 * ((k * 7 % 5) as f64))
+            .collect();
+        let x: Vec<f64> = t
+            .iter()
+            .map(|t| 1.0 - t + 2.0 * t.powi(3) - 3.0 * t.powi(4))
+            .collect();
+        let (v, a) = local_rates_of_degree(&t, &x, 0.03, 4);
+        for i in 0..t.len() {
+            let (vt, at) = (
+                -1.0 + 6.0 * t[i].powi(2) - 12.0 * t[i].powi(3),
+                12.0 * t[i] - 36.0 * t[i].powi(2),
+            );
+            assert!((v[i] - vt).abs() < 1e-7, "{i}: {} against {vt}", v[i]);
+            assert!((a[i] - at).abs() < 1e-5, "{i}: {} against {at}", a[i]);
+        }
+        // 9 Hz with ±40 ms (ωh = 2.3): the quadratic's ẍ is a fraction of the truth's.
+        let w = std::f64::consts::TAU * 9.0;
+        let t: Vec<f64> = (0..2000).map(|k| k as f64 * 0.001).collect();
+        let x: Vec<f64> = t.iter().map(|t| (w * t).sin()).collect();
+        let err = |deg: usize| {
+            let (_, a) = local_rates_of_degree(&t, &x, 0.04, deg);
+            (100..1900)
+                .map(|i| (a[i] + w * w * (w * t[i]).sin()).abs())
+                .fold(0.0f64, f64::max)
+                / (w * w)
+        };
+        let (e2, e4) = (err(2), err(4));
+        assert!(e2 > 0.3, "quadratic: {e2}");
+        assert!(e4 < 0.5 * e2, "quartic {e4} against quadratic {e2}");
+        assert_eq!(
+            local_rates(&t, &x, 0.04).1,
+            local_rates_of_degree(&t, &x, 0.04, 2).1
+        );
     }
 
     #[test]
