@@ -31,7 +31,7 @@ try:
     time.sleep(3.0)  # the viewer binds its port
     rig = subprocess.Popen(
         [str(ROOT / "target" / "release" / "rig"), "up", "--duration", str(SECONDS + 3),
-         "--connect", URL])
+         "--viewer", URL])
     time.sleep(SECONDS)
     client = rrx.ViewerClient.connect(URL)
     client.save_screenshot(str(OUT))

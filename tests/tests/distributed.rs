@@ -6,7 +6,7 @@
 #![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)]
 
 mod common;
-use common::{Proc, bin, config, free_port, rt, s, serial, spawn};
+use common::{Proc, alive, bin, config, free_port, rt, s, serial, spawn, wait_alive};
 
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
@@ -62,7 +62,7 @@ fn a_pushed_end_effector_force_is_estimated_within_the_simulators_accuracy() {
     let _one_at_a_time = serial();
     let hub = format!("tcp/127.0.0.1:{}", free_port());
     let _est = host("estimator", &hub);
-    std::thread::sleep(Duration::from_millis(500));
+    wait_alive(&hub, &[alive("estimator", "0")]);
     let start = now_ns();
     let _joints: Vec<Proc> = ["j1", "j2", "j3", "j4"]
         .iter()
@@ -149,7 +149,7 @@ fn an_allocation_request_round_trips_to_pivot_commands() {
     let _one_at_a_time = serial();
     let hub = format!("tcp/127.0.0.1:{}", free_port());
     let _alloc = host("allocator", &hub);
-    std::thread::sleep(Duration::from_millis(500));
+    wait_alive(&hub, &[alive("allocator", "0")]);
     let _joints: Vec<Proc> = ["j1", "j2", "j3", "j4"]
         .iter()
         .map(|j| joint(j, &hub, now_ns()))
@@ -169,7 +169,11 @@ fn an_allocation_request_round_trips_to_pivot_commands() {
             })
             .await
             .unwrap();
-        tokio::time::sleep(Duration::from_millis(1500)).await;
+        let joints: Vec<String> = ["j1", "j2", "j3", "j4"]
+            .iter()
+            .map(|j| alive("joint", j))
+            .collect();
+        common::wait_alive_on(&z, &joints).await;
         let req = AllocationRequest {
             id: 42,
             x_m: 0.075,
@@ -222,7 +226,7 @@ fn a_killed_joint_is_marked_stale_and_recovers_when_restarted() {
     let _one_at_a_time = serial();
     let hub = format!("tcp/127.0.0.1:{}", free_port());
     let _est = host("estimator", &hub);
-    std::thread::sleep(Duration::from_millis(500));
+    wait_alive(&hub, &[alive("estimator", "0")]);
     let start = now_ns();
     let mut joints: Vec<Option<Proc>> = ["j1", "j2", "j3", "j4"]
         .iter()
@@ -286,7 +290,7 @@ fn a_python_client_subscribes_and_decodes_a_sample() {
     let _one_at_a_time = serial();
     let hub = format!("tcp/127.0.0.1:{}", free_port());
     let _est = host("estimator", &hub);
-    std::thread::sleep(Duration::from_millis(500));
+    wait_alive(&hub, &[alive("estimator", "0")]);
     let _j = joint("j1", &hub, now_ns());
     let script = Path::new(env!("CARGO_MANIFEST_DIR")).join("../protocol/python/subscribe.py");
     let out = Command::new("python3")
@@ -327,7 +331,7 @@ fn a_recording_replays_offline_to_the_same_estimates_and_survives_a_killed_recor
     std::fs::create_dir_all(&dir).unwrap();
     let (full, killed) = (dir.join("full.mcap"), dir.join("killed.mcap"));
     let _est = host("estimator", &hub);
-    std::thread::sleep(Duration::from_millis(500));
+    wait_alive(&hub, &[alive("estimator", "0")]);
     // Both recorders listen and every joint connects to them directly (as well as to the
     // estimator's hub): in peer-to-peer mode a sample reaches only peers already linked, and
     // links found by gossip may come after a joint's first samples on a loaded machine. So the
@@ -360,7 +364,12 @@ fn a_recording_replays_offline_to_the_same_estimates_and_survives_a_killed_recor
             killed.to_str().unwrap(),
         ]),
     );
-    std::thread::sleep(Duration::from_millis(1500));
+    let recorders = [
+        alive("recorder", &rec.0.id().to_string()),
+        alive("recorder", &rec_killed.0.id().to_string()),
+    ];
+    wait_alive(&rec_at, &recorders[..1]);
+    wait_alive(&killed_at, &recorders[1..]);
     let start = now_ns();
     let joints: Vec<Proc> = ["j1", "j2", "j3", "j4"]
         .iter()
@@ -719,7 +728,7 @@ fn a_recording_of_the_bench_is_identified_and_its_undeclared_offset_named() {
             "12",
         ]),
     );
-    std::thread::sleep(Duration::from_millis(1000));
+    wait_alive(&hub, &[format!("rig/bench/alive/recorder/{}", rec.0.id())]);
     let o = Command::new(bin("rig"))
         .arg("up")
         .arg("--config")

@@ -83,7 +83,7 @@ fn ee_forces(board: &[String], start: u64) -> (BTreeMap<i64, (f64, f64)>, Option
             "rig",
             &s(&["estimator", "--config", &cfg, "--connect", &hub]),
         );
-        tokio::time::sleep(Duration::from_millis(500)).await;
+        common::wait_alive_on(&z, &[common::alive("estimator", "0")]).await;
         let mut args = s(&[
             "--config",
             &cfg,

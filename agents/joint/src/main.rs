@@ -2,12 +2,11 @@
 
 use std::path::PathBuf;
 use std::process::ExitCode;
-use std::time::Duration;
 
 use clap::{Parser, ValueEnum};
 use rig_joint::agent::{AgentOptions, BackendKind, run};
 use rig_joint::hardware::PortOverrides;
-use rig_runtime::{NetOverrides, now_ns};
+use rig_runtime::{NetArgs, RunFor, now_ns, tokio_runtime};
 
 /// Where readings come from.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
@@ -44,21 +43,16 @@ struct Args {
     /// Encoder bridge port instead of the config's `encoder.device` (dynamixel backend)
     #[arg(long, value_name = "PATH")]
     bridge: Option<PathBuf>,
-    /// Zenoh endpoints to listen on (overrides the config), e.g. tcp/127.0.0.1:7447
-    #[arg(long, value_name = "ENDPOINT")]
-    listen: Vec<String>,
-    /// Zenoh endpoints to connect to (overrides the config)
-    #[arg(long, value_name = "ENDPOINT")]
-    connect: Vec<String>,
+    #[command(flatten)]
+    net: NetArgs,
     /// Start of the simulated world [ns since the UNIX epoch]; default: now
     #[arg(long)]
     start_ns: Option<u64>,
     /// Seed of the simulated sensors
     #[arg(long, default_value_t = 1)]
     seed: u64,
-    /// Stop after this many seconds (default: until Ctrl-C)
-    #[arg(long)]
-    duration: Option<f64>,
+    #[command(flatten)]
+    run_for: RunFor,
     /// Undeclared effects of the simulated joint, for testing what the estimator notices: a
     /// TOML file of effect fields (agents/sim/SCENARIOS.md), e.g. `torque_offset_nm = 0.05`
     #[arg(long, value_name = "FILE")]
@@ -104,22 +98,12 @@ fn main() -> ExitCode {
         effects,
         cfg,
         joints: a.joint.clone(),
-        net: NetOverrides {
-            listen: a.listen,
-            connect: a.connect,
-        },
+        net: a.net.overrides(),
         start_ns: a.start_ns.unwrap_or_else(now_ns),
         seed: a.seed,
-        duration: a
-            .duration
-            .filter(|d| d.is_finite() && *d > 0.0)
-            .map(Duration::from_secs_f64),
+        duration: a.run_for.duration,
     };
-    let rt = match tokio::runtime::Builder::new_multi_thread()
-        .worker_threads(2)
-        .enable_all()
-        .build()
-    {
+    let rt = match tokio_runtime(Some(2)) {
         Ok(rt) => rt,
         Err(e) => {
             eprintln!("error: cannot start the async runtime: {e}");

@@ -20,8 +20,9 @@ use rig_config::{RigConfig, Topology};
 use rig_estimator::edge::{EstimatorOptions, EstimatorReport, run as run_estimator};
 use rig_joint::agent::{AgentOptions, AgentReport, run as run_joint};
 use rig_protocol::{JointSample, encode};
+use rig_runtime::cli::positive_seconds;
 use rig_runtime::zenoh::{self, Wait};
-use rig_runtime::{NetOverrides, now_ns, open, zenoh_config};
+use rig_runtime::{NetOverrides, now_ns, open, tokio_runtime, wait_alive, zenoh_config};
 use serde::Serialize;
 use tokio::sync::watch;
 
@@ -57,8 +58,8 @@ struct LatencyArgs {
     #[arg(long, value_name = "FILE")]
     config: Option<std::path::PathBuf>,
     /// How long the rig runs [s]
-    #[arg(long, default_value_t = 60.0, value_name = "SECONDS")]
-    duration: f64,
+    #[arg(long, default_value = "60", value_name = "SECONDS", value_parser = positive_seconds, allow_negative_numbers = true)]
+    duration: Duration,
     /// How the joints are served: `one` board for all (paper B's wiring: one bus drives
     /// every servo) or a board `per-joint` (as `rig up` runs them)
     #[arg(long, value_enum, default_value_t = Boards::One)]
@@ -87,8 +88,8 @@ struct ThroughputArgs {
     #[arg(long, default_value_t = 1000.0, value_name = "HZ")]
     rate_hz: f64,
     /// How long the board runs [s]
-    #[arg(long, default_value_t = 10.0, value_name = "SECONDS")]
-    duration: f64,
+    #[arg(long, default_value = "10", value_name = "SECONDS", value_parser = positive_seconds, allow_negative_numbers = true)]
+    duration: Duration,
     /// Print one JSON object instead of the table
     #[arg(long)]
     json: bool,
@@ -262,10 +263,7 @@ fn run_rig(
     duration: Duration,
     label: &str,
 ) -> Result<RigRun, CliError> {
-    let rt = tokio::runtime::Builder::new_multi_thread()
-        .worker_threads(2)
-        .enable_all()
-        .build()?;
+    let rt = tokio_runtime(Some(2))?;
     let err = |e: String| CliError::Unsupported(e);
     rt.block_on(async {
         let hub = free_loopback_endpoint()?;
@@ -284,17 +282,29 @@ fn run_rig(
             },
             stopped(stop_est_rx),
         ));
-        tokio::time::sleep(Duration::from_millis(300)).await;
         let peer = NetOverrides {
             listen: vec![],
             connect: vec![hub.clone()],
         };
-        // An observer of every estimate, as a viewer or a recorder would be.
+        // An observer of every estimate, as a viewer or a recorder would be; the joints start
+        // once it sees the estimator's liveliness token.
         let observer = open(&cfg.zenoh, &peer)
             .await
             .map_err(|e| err(e.to_string()))?;
         let observed = Arc::new(AtomicU64::new(0));
         let keys = rig_protocol::Keys::new(&cfg.name).map_err(|e| err(e.to_string()))?;
+        let estimator_key = keys
+            .alive("estimator", "0")
+            .map_err(|e| err(e.to_string()))?;
+        if !wait_alive(&observer, &[estimator_key], Duration::from_secs(10))
+            .await
+            .map_err(|e| err(e.to_string()))?
+            .is_empty()
+        {
+            return Err(err(format!(
+                "the estimator did not come up on {hub} within 10 s"
+            )));
+        }
         let mut estimate_keys = vec![keys.ee_estimate()];
         for j in &cfg.joints {
             estimate_keys.push(
@@ -363,18 +373,8 @@ fn run_rig(
     })
 }
 
-fn positive_duration(s: f64) -> Result<Duration, CliError> {
-    if s.is_finite() && s > 0.0 {
-        Ok(Duration::from_secs_f64(s))
-    } else {
-        Err(CliError::Invalid(format!(
-            "--duration: {s} s is not a positive number of seconds"
-        )))
-    }
-}
-
 fn latency(a: &LatencyArgs) -> Result<(), CliError> {
-    let duration = positive_duration(a.duration)?;
+    let duration = a.duration;
     if a.pings == 0 {
         return Err(CliError::Invalid("--pings: at least one round trip".into()));
     }
@@ -500,7 +500,7 @@ fn bench_config(n: usize, rate_hz: f64) -> Result<RigConfig, CliError> {
 }
 
 fn throughput(a: &ThroughputArgs) -> Result<(), CliError> {
-    let duration = positive_duration(a.duration)?;
+    let duration = a.duration;
     let cfg = bench_config(a.joints, a.rate_hz)?;
     eprintln!(
         "rig bench throughput: {} joints × {} Hz on one board against one estimator host, {:.0} s",

@@ -3,7 +3,7 @@
 //! `dynamixel` backend takes, against what the wire allows).
 
 use std::path::PathBuf;
-use std::time::{Duration, Instant};
+use std::time::Instant;
 
 use rig_config::RigConfig;
 use rig_dynamixel::timing::wire_s;
@@ -40,9 +40,8 @@ pub struct VirtualArgs {
     /// Seed of the simulated plant
     #[arg(long, default_value_t = 1)]
     seed: u64,
-    /// Stop after this many seconds (default: until Ctrl-C)
-    #[arg(long, value_name = "SECONDS")]
-    duration: Option<f64>,
+    #[command(flatten)]
+    run_for: rig_runtime::RunFor,
     /// Print the ports as one JSON object {"bus", "bridge"}
     #[arg(long)]
     json: bool,
@@ -71,8 +70,8 @@ pub fn virtual_board(a: &VirtualArgs) -> Result<(), CliError> {
         .build()?;
     rt.block_on(async {
         let until = async {
-            match a.duration.filter(|d| d.is_finite() && *d > 0.0) {
-                Some(d) => tokio::time::sleep(Duration::from_secs_f64(d)).await,
+            match a.run_for.duration {
+                Some(d) => tokio::time::sleep(d).await,
                 None => std::future::pending().await,
             }
         };

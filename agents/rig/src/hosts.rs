@@ -4,7 +4,7 @@
 use std::path::PathBuf;
 use std::time::Duration;
 
-use rig_runtime::NetOverrides;
+use rig_runtime::{NetArgs, NetOverrides, RunFor, tokio_runtime};
 
 use crate::error::CliError;
 
@@ -13,39 +13,21 @@ pub struct HostArgs {
     /// Rig config (TOML)
     #[arg(long, value_name = "FILE")]
     config: PathBuf,
-    /// Zenoh endpoints to listen on (overrides the config)
-    #[arg(long, value_name = "ENDPOINT")]
-    listen: Vec<String>,
-    /// Zenoh endpoints to connect to (overrides the config)
-    #[arg(long, value_name = "ENDPOINT")]
-    connect: Vec<String>,
-    /// Stop after this many seconds (default: until Ctrl-C)
-    #[arg(long, value_name = "SECONDS")]
-    duration: Option<f64>,
+    #[command(flatten)]
+    net: NetArgs,
+    #[command(flatten)]
+    run_for: RunFor,
 }
 
 fn runtime() -> Result<tokio::runtime::Runtime, CliError> {
-    Ok(tokio::runtime::Builder::new_multi_thread()
-        .worker_threads(2)
-        .enable_all()
-        .build()?)
+    Ok(tokio_runtime(Some(2))?)
 }
 
 fn parts(
     a: &HostArgs,
 ) -> Result<(rig_config::RigConfig, NetOverrides, Option<Duration>), CliError> {
     let cfg = rig_config::load(&a.config)?;
-    let net = NetOverrides {
-        listen: a.listen.clone(),
-        connect: a.connect.clone(),
-    };
-    Ok((
-        cfg,
-        net,
-        a.duration
-            .filter(|d| d.is_finite() && *d > 0.0)
-            .map(Duration::from_secs_f64),
-    ))
+    Ok((cfg, a.net.overrides(), a.run_for.duration))
 }
 
 async fn ctrl_c() {

@@ -14,7 +14,7 @@ use std::time::Duration;
 
 use rig_estimator::core::{CoreTiming, EstimatorCore, Output};
 use rig_protocol::{EeEstimate, JointEstimate, JointSample, Keys, Kind, decode};
-use rig_runtime::{NetOverrides, now_ns, open};
+use rig_runtime::{NetArgs, RunFor, now_ns, open, tokio_runtime};
 
 use crate::error::CliError;
 
@@ -49,26 +49,20 @@ pub struct RecordArgs {
     /// Rig config, for the rig's name and Zenoh endpoints (default: the example parallel robot)
     #[arg(long, value_name = "FILE")]
     config: Option<PathBuf>,
-    /// Zenoh endpoints to connect to, e.g. the tcp/127.0.0.1:PORT that `rig up --listen` opened
-    #[arg(long, value_name = "ENDPOINT")]
-    connect: Vec<String>,
-    /// Zenoh endpoints to listen on
-    #[arg(long, value_name = "ENDPOINT")]
-    listen: Vec<String>,
-    /// Stop after this many seconds (default: until Ctrl-C)
-    #[arg(long, value_name = "SECONDS")]
-    duration: Option<f64>,
+    /// Zenoh endpoints: `--connect` the running rig's, e.g. the tcp/127.0.0.1:PORT that
+    /// `rig up --listen` opened
+    #[command(flatten)]
+    net: NetArgs,
+    #[command(flatten)]
+    run_for: RunFor,
 }
 
 pub fn record(a: &RecordArgs) -> Result<(), CliError> {
     let cfg = crate::config::load_or_parallel(&a.config)?;
-    let rt = tokio::runtime::Builder::new_multi_thread()
-        .worker_threads(2)
-        .enable_all()
-        .build()?;
+    let rt = tokio_runtime(Some(2))?;
     rt.block_on(async {
         let keys = Keys::new(&cfg.name).map_err(|e| CliError::Invalid(e.to_string()))?;
-        let session = open(&cfg.zenoh, &NetOverrides { listen: a.listen.clone(), connect: a.connect.clone() })
+        let session = open(&cfg.zenoh, &a.net.overrides())
             .await
             .map_err(|e| CliError::Unsupported(e.to_string()))?;
         // A callback into an unbounded channel: the session's receive path never waits on the
@@ -81,6 +75,15 @@ pub fn record(a: &RecordArgs) -> Result<(), CliError> {
             })
             .await
             .map_err(|e| CliError::Unsupported(e.to_string()))?;
+        // Up once subscribed, as every role: `rig/<rig>/alive/recorder/<pid>`.
+        let _token = session
+            .liveliness()
+            .declare_token(
+                keys.alive("recorder", &std::process::id().to_string())
+                    .map_err(|e| CliError::Invalid(e.to_string()))?,
+            )
+            .await
+            .map_err(|e| CliError::Unsupported(e.to_string()))?;
         let file = std::fs::File::create(&a.out)?;
         let mut w = mcap::WriteOptions::new()
             .use_chunks(false)
@@ -90,7 +93,7 @@ pub fn record(a: &RecordArgs) -> Result<(), CliError> {
         let mut schemas: BTreeMap<u8, u16> = BTreeMap::new();
         let mut channels: BTreeMap<String, u16> = BTreeMap::new();
         let mut seq = 0u32;
-        let deadline = a.duration.filter(|d| d.is_finite() && *d > 0.0).map(|d| tokio::time::Instant::now() + Duration::from_secs_f64(d));
+        let deadline = a.run_for.duration.map(|d| tokio::time::Instant::now() + d);
         let mut flush = tokio::time::interval(Duration::from_millis(100));
         let ctrl_c = tokio::signal::ctrl_c();
         tokio::pin!(ctrl_c);
@@ -193,11 +196,9 @@ pub struct ReplayArgs {
     /// recording to start before the rig (the models' hysteresis remembers what it saw)
     #[arg(long, default_value_t = 0.0, value_name = "SECONDS")]
     settle: f64,
-    /// Zenoh endpoints to connect to, or a Rerun viewer URL for --viz
-    #[arg(long, value_name = "ENDPOINT|URL")]
-    connect: Vec<String>,
-    #[arg(long, value_name = "ENDPOINT")]
-    listen: Vec<String>,
+    /// Zenoh endpoints to republish on
+    #[command(flatten)]
+    net: NetArgs,
     /// Draw the recording in Rerun instead of republishing it
     #[command(flatten)]
     viz: crate::viz::VizArgs,
@@ -216,8 +217,8 @@ pub fn replay(a: &ReplayArgs) -> Result<(), CliError> {
     if a.estimate {
         return estimate_offline(&cfg, &msgs, a);
     }
-    let (zenoh_connect, viewer_url) = crate::viz::split_connect(&a.connect);
-    if let Some(sink) = a.viz.sink(viewer_url, &cfg, false) {
+    crate::viz::no_viewer_in_connect(&a.net)?;
+    if let Some(sink) = a.viz.sink(&cfg, false)? {
         let viz = crate::viz::VizThread::start(&cfg, &sink)?;
         let tx = viz.sender();
         for m in &msgs {
@@ -231,20 +232,11 @@ pub fn replay(a: &ReplayArgs) -> Result<(), CliError> {
         );
         return Ok(());
     }
-    let rt = tokio::runtime::Builder::new_multi_thread()
-        .worker_threads(2)
-        .enable_all()
-        .build()?;
+    let rt = tokio_runtime(Some(2))?;
     rt.block_on(async {
-        let session = open(
-            &cfg.zenoh,
-            &NetOverrides {
-                listen: a.listen.clone(),
-                connect: zenoh_connect,
-            },
-        )
-        .await
-        .map_err(|e| CliError::Unsupported(e.to_string()))?;
+        let session = open(&cfg.zenoh, &a.net.overrides())
+            .await
+            .map_err(|e| CliError::Unsupported(e.to_string()))?;
         tokio::time::sleep(Duration::from_millis(500)).await;
         let t0 = msgs.first().map_or(0, |m| m.log_time);
         let start = tokio::time::Instant::now();

@@ -4,16 +4,14 @@
 
 use std::path::PathBuf;
 use std::sync::mpsc;
-use std::time::Duration;
 
 use rig_config::RigConfig;
-use rig_runtime::{NetOverrides, open, zenoh_err};
+use rig_runtime::{NetArgs, NetOverrides, RunFor, open, tokio_runtime, zenoh_err};
 use rig_viz::{Sink, Viz, VizStats, is_rerun_url};
 
 use crate::error::CliError;
 
-/// Rerun's own flags: `--spawn`, `--connect URL` (shared with the Zenoh endpoints; a
-/// `rerun+http://…` URL goes to the viewer), `--save FILE.rrd`.
+/// Rerun's own flags: `--spawn`, `--viewer URL` (a running viewer), `--save FILE.rrd`.
 #[derive(Debug, Clone, Default, clap::Args)]
 pub struct VizArgs {
     /// Show the rig in Rerun: spawn the viewer when `rerun` is on PATH (pip install
@@ -26,34 +24,43 @@ pub struct VizArgs {
     /// Save the view to this .rrd file instead of showing it (implies --viz)
     #[arg(long, value_name = "FILE.rrd")]
     pub save: Option<PathBuf>,
+    /// Stream to a running Rerun viewer at this URL, e.g. rerun+http://127.0.0.1:9876/proxy
+    /// (implies --viz)
+    #[arg(long, value_name = "URL")]
+    pub viewer: Option<String>,
 }
 
-/// Splits `--connect` values into Zenoh endpoints and Rerun viewer URLs.
-pub fn split_connect(connect: &[String]) -> (Vec<String>, Option<String>) {
-    let (rerun, zenoh): (Vec<&String>, Vec<&String>) =
-        connect.iter().partition(|c| is_rerun_url(c));
-    (
-        zenoh.into_iter().cloned().collect(),
-        rerun.last().map(|s| s.to_string()),
-    )
+/// Refuses a Rerun viewer URL among the Zenoh endpoints of `--connect`, saying where it goes.
+pub fn no_viewer_in_connect(net: &rig_runtime::NetArgs) -> Result<(), CliError> {
+    match net.connect.iter().find(|c| is_rerun_url(c)) {
+        Some(url) => Err(CliError::Invalid(format!(
+            "--connect {url}: a Rerun viewer URL, not a Zenoh endpoint; give it with --viewer {url}"
+        ))),
+        None => Ok(()),
+    }
 }
 
 impl VizArgs {
-    /// The sink asked for, if any (`viewer_url` from `--connect`); `always` for `rig viz`.
-    pub fn sink(&self, viewer_url: Option<String>, cfg: &RigConfig, always: bool) -> Option<Sink> {
+    /// The sink asked for, if any; `always` for `rig viz`.
+    pub fn sink(&self, cfg: &RigConfig, always: bool) -> Result<Option<Sink>, CliError> {
         if let Some(p) = &self.save {
-            return Some(Sink::Save(p.clone()));
+            return Ok(Some(Sink::Save(p.clone())));
         }
-        if let Some(url) = viewer_url {
-            return Some(Sink::Connect(url));
+        if let Some(url) = &self.viewer {
+            if !is_rerun_url(url) {
+                return Err(CliError::Invalid(format!(
+                    "--viewer {url}: not a Rerun viewer URL (rerun+http://HOST:PORT/proxy)"
+                )));
+            }
+            return Ok(Some(Sink::Connect(url.clone())));
         }
         if self.spawn {
-            return Some(Sink::Spawn);
+            return Ok(Some(Sink::Spawn));
         }
-        (self.viz || always).then(|| {
+        Ok((self.viz || always).then(|| {
             let stamp = rig_runtime::now_ns() / 1_000_000_000;
             Sink::default_for(PathBuf::from(format!("rig-{}-{stamp}.rrd", cfg.name)))
-        })
+        }))
     }
 }
 
@@ -135,39 +142,25 @@ pub struct Args {
     /// Rig config (default: the example parallel robot)
     #[arg(long, value_name = "FILE")]
     config: Option<PathBuf>,
-    /// Zenoh endpoints of the running rig (e.g. the `rig up --listen` one), or a Rerun viewer
-    /// URL (rerun+http://127.0.0.1:9876/proxy) to stream to
-    #[arg(long, value_name = "ENDPOINT|URL")]
-    connect: Vec<String>,
-    /// Zenoh endpoints to listen on
-    #[arg(long, value_name = "ENDPOINT")]
-    listen: Vec<String>,
-    /// Stop after this many seconds (default: until Ctrl-C)
-    #[arg(long, value_name = "SECONDS")]
-    duration: Option<f64>,
+    /// Zenoh endpoints: `--connect` the running rig's (e.g. the `rig up --listen` one)
+    #[command(flatten)]
+    net: NetArgs,
+    #[command(flatten)]
+    run_for: RunFor,
     #[command(flatten)]
     sink: VizArgs,
 }
 
 pub fn run(a: &Args) -> Result<(), CliError> {
     let cfg = crate::config::load_or_parallel(&a.config)?;
-    let (zenoh, url) = split_connect(&a.connect);
-    let Some(sink) = a.sink.sink(url, &cfg, true) else {
+    no_viewer_in_connect(&a.net)?;
+    let Some(sink) = a.sink.sink(&cfg, true)? else {
         return Err(CliError::Unsupported("no Rerun sink".into()));
     };
     let viz = VizThread::start(&cfg, &sink)?;
-    let net = NetOverrides {
-        listen: a.listen.clone(),
-        connect: zenoh,
-    };
-    let rt = tokio::runtime::Builder::new_multi_thread()
-        .worker_threads(2)
-        .enable_all()
-        .build()?;
-    let duration = a
-        .duration
-        .filter(|d| d.is_finite() && *d > 0.0)
-        .map(Duration::from_secs_f64);
+    let net = a.net.overrides();
+    let rt = tokio_runtime(Some(2))?;
+    let duration = a.run_for.duration;
     rt.block_on(observe(&cfg, &net, &viz, async move {
         match duration {
             Some(d) => tokio::time::sleep(d).await,

@@ -87,3 +87,27 @@ pub async fn session(listen: &[&str], connect: &[&str]) -> rig_runtime::zenoh::S
     .await
     .unwrap()
 }
+
+/// The liveliness key of a role of the example rig (`rig/parallel/alive/<role>/<id>`).
+pub fn alive(role: &str, id: &str) -> String {
+    format!("rig/parallel/alive/{role}/{id}")
+}
+
+/// Waits, on a session of its own connected to `hub`, until each role's liveliness token is up
+/// (a role declares it once its subscriptions are in place); panics naming those that did not
+/// come within 20 s. Tests start what depends on a role after this, instead of sleeping.
+pub fn wait_alive(hub: &str, keys: &[String]) {
+    rt().block_on(async {
+        let z = session(&[], &[hub]).await;
+        wait_alive_on(&z, keys).await;
+        let _ = z.close().await;
+    });
+}
+
+/// [`wait_alive`] on a session the test already has.
+pub async fn wait_alive_on(z: &rig_runtime::zenoh::Session, keys: &[String]) {
+    let missing = rig_runtime::wait_alive(z, keys, std::time::Duration::from_secs(20))
+        .await
+        .unwrap();
+    assert!(missing.is_empty(), "not up within 20 s: {missing:?}");
+}

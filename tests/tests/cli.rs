@@ -1,0 +1,81 @@
+//! The flags every role shares (`rig_runtime::cli`): each long-running command refuses a
+//! duration that is not a positive number of seconds — zero, negative, NaN, infinite, or so
+//! large that it would overflow — with clap's usage error (status 2) naming `--duration` and
+//! the value, before it opens anything; and a Rerun viewer URL given to `--connect` is refused
+//! with the flag it belongs to.
+
+#![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)]
+
+mod common;
+use common::{bin, config};
+
+use std::process::Command;
+use std::time::{Duration, Instant};
+
+fn run(binary: &str, args: &[&str]) -> (Option<i32>, String) {
+    let o = Command::new(bin(binary)).args(args).output().unwrap();
+    (
+        o.status.code(),
+        String::from_utf8_lossy(&o.stderr).into_owned(),
+    )
+}
+
+#[test]
+fn every_long_running_command_refuses_a_duration_that_is_not_a_positive_number_of_seconds() {
+    let cfg = config();
+    let cfg = cfg.to_str().unwrap();
+    let out = std::env::temp_dir().join("rig-cli-never-written.mcap");
+    let commands: Vec<(&str, Vec<&str>)> = vec![
+        ("rig", vec!["up"]),
+        ("rig", vec!["estimator", "--config", cfg]),
+        ("rig", vec!["allocator", "--config", cfg]),
+        ("rig", vec!["record", "--out", out.to_str().unwrap()]),
+        ("rig", vec!["viz", "--save", "/tmp/never.rrd"]),
+        ("rig", vec!["virtual-board", "--joint", "j1"]),
+        ("rig", vec!["bench", "latency"]),
+        ("rig", vec!["bench", "throughput"]),
+        ("rig-joint", vec!["--config", cfg, "--joint", "j1"]),
+    ];
+    for (binary, cmd) in &commands {
+        for bad in ["0", "-1", "nan", "inf", "1e20"] {
+            let start = Instant::now();
+            let mut args = cmd.clone();
+            args.extend(["--duration", bad]);
+            let (code, err) = run(binary, &args);
+            assert_eq!(code, Some(2), "{binary} {args:?}: {err}");
+            assert!(
+                err.contains("--duration") && err.contains(bad),
+                "{binary} {args:?}: {err}"
+            );
+            // Refused while parsing: nothing was started.
+            assert!(
+                start.elapsed() < Duration::from_secs(5),
+                "{binary} {args:?}"
+            );
+        }
+    }
+    assert!(
+        !out.exists(),
+        "record wrote {} before refusing",
+        out.display()
+    );
+}
+
+#[test]
+fn a_rerun_viewer_url_given_to_connect_is_refused_with_the_flag_it_belongs_to() {
+    for cmd in [vec!["up"], vec!["viz"]] {
+        let mut args = cmd.clone();
+        args.extend([
+            "--duration",
+            "1",
+            "--connect",
+            "rerun+http://127.0.0.1:9876/proxy",
+        ]);
+        let (code, err) = run("rig", &args);
+        assert_ne!(code, Some(0), "{args:?}: {err}");
+        assert!(
+            err.contains("--viewer rerun+http://127.0.0.1:9876/proxy"),
+            "{args:?}: {err}"
+        );
+    }
+}
