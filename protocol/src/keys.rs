@@ -95,6 +95,23 @@ impl Keys {
         Ok(format!("{}/sim/joint/{j}/truth", self.prefix))
     }
 
+    /// Every joint's samples: `rig/<rig>/joint/*/sample`.
+    pub fn all_joint_samples(&self) -> String {
+        format!("{}/joint/*/sample", self.prefix)
+    }
+
+    /// Every simulated joint's truth: `rig/<rig>/sim/joint/*/truth`.
+    pub fn all_sim_truths(&self) -> String {
+        format!("{}/sim/joint/*/truth", self.prefix)
+    }
+
+    /// `rig bench`'s own round-trip keys, under one run's `<id>`: `rig/<rig>/bench/<id>/<leaf>`.
+    pub fn bench(&self, id: &str, leaf: &str) -> Result<String, KeyError> {
+        check_name("id", id)?;
+        check_name("leaf", leaf)?;
+        Ok(format!("{}/bench/{id}/{leaf}", self.prefix))
+    }
+
     pub fn ee_estimate(&self) -> String {
         format!("{}/estimate/ee", self.prefix)
     }
@@ -215,6 +232,15 @@ impl Topic {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn wildcards_and_bench_keys_are_built_under_the_rigs_prefix() {
+        let k = Keys::new("lab-1").unwrap();
+        assert_eq!(k.all_joint_samples(), "rig/lab-1/joint/*/sample");
+        assert_eq!(k.all_sim_truths(), "rig/lab-1/sim/joint/*/truth");
+        assert_eq!(k.bench("42", "ping").unwrap(), "rig/lab-1/bench/42/ping");
+        assert!(k.bench("4/2", "ping").is_err());
+    }
 
     #[test]
     fn builds_and_parses_every_key() {

@@ -188,25 +188,27 @@ fn zenoh_rtt(cfg: &RigConfig, pings: usize, payload: Vec<u8>) -> Result<Vec<u64>
     })?)
     .wait()
     .map_err(zerr)?;
-    let prefix = format!("rig/{}/bench/{}", cfg.name, std::process::id());
+    let keys = rig_protocol::Keys::new(&cfg.name).map_err(zerr)?;
+    let id = std::process::id().to_string();
+    let (ping_key, pong_key) = (
+        keys.bench(&id, "ping").map_err(zerr)?,
+        keys.bench(&id, "pong").map_err(zerr)?,
+    );
     let pong = b
-        .declare_publisher(format!("{prefix}/pong"))
+        .declare_publisher(pong_key.clone())
         .congestion_control(zenoh::qos::CongestionControl::Block)
         .wait()
         .map_err(zerr)?;
     let _echo = b
-        .declare_subscriber(format!("{prefix}/ping"))
+        .declare_subscriber(ping_key.clone())
         .callback(move |s| {
             let _ = pong.put(s.payload().clone()).wait();
         })
         .wait()
         .map_err(zerr)?;
-    let replies = a
-        .declare_subscriber(format!("{prefix}/pong"))
-        .wait()
-        .map_err(zerr)?;
+    let replies = a.declare_subscriber(pong_key).wait().map_err(zerr)?;
     let ping = a
-        .declare_publisher(format!("{prefix}/ping"))
+        .declare_publisher(ping_key)
         .congestion_control(zenoh::qos::CongestionControl::Block)
         .wait()
         .map_err(zerr)?;

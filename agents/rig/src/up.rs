@@ -298,11 +298,11 @@ async fn up(cfg: RigConfig, args: &Args) -> Result<(), CliError> {
 
     let subs = (
         session
-            .declare_subscriber(format!("rig/{}/joint/*/sample", cfg.name))
+            .declare_subscriber(keys.all_joint_samples())
             .await
             .map_err(|e| err(e.to_string()))?,
         session
-            .declare_subscriber(format!("rig/{}/sim/joint/*/truth", cfg.name))
+            .declare_subscriber(keys.all_sim_truths())
             .await
             .map_err(|e| err(e.to_string()))?,
         session

@@ -119,9 +119,10 @@ pub async fn observe_with(
     stop: impl std::future::Future<Output = ()>,
 ) -> Result<(), CliError> {
     let err = |e: rig_runtime::RuntimeError| CliError::Unsupported(e.to_string());
+    let keys = rig_protocol::Keys::new(&cfg.name).map_err(|e| CliError::Invalid(e.to_string()))?;
     let session = open(&cfg.zenoh, net).await.map_err(err)?;
     let sub = session
-        .declare_subscriber(format!("rig/{}/**", cfg.name))
+        .declare_subscriber(keys.all())
         .callback(move |s| {
             let _ = tx.send((
                 s.key_expr().to_string(),

@@ -9,6 +9,7 @@
 use std::time::{SystemTime, UNIX_EPOCH};
 
 use rig_config::{ZenohConfig, ZenohMode};
+use serde_json::json;
 use thiserror::Error;
 
 pub use zenoh;
@@ -52,14 +53,6 @@ pub fn now_ns() -> u64 {
         .map_or(1, |d| d.as_nanos() as u64)
 }
 
-fn json_list(v: &[String]) -> String {
-    let quoted: Vec<String> = v
-        .iter()
-        .map(|e| format!("\"{}\"", e.replace('"', "")))
-        .collect();
-    format!("[{}]", quoted.join(","))
-}
-
 /// The Zenoh config of one agent: the rig's mode and endpoints, CLI overrides winning.
 /// Without any listen endpoint a peer listens on an ephemeral loopback port.
 pub fn zenoh_config(z: &ZenohConfig, net: &NetOverrides) -> Result<zenoh::Config, RuntimeError> {
@@ -90,22 +83,23 @@ pub fn zenoh_config(z: &ZenohConfig, net: &NetOverrides) -> Result<zenoh::Config
         listen
     };
     let mut c = zenoh::Config::default();
-    let set = |c: &mut zenoh::Config, k: &str, v: &str| {
-        c.insert_json5(k, v)
+    // Values as JSON from serde_json: an endpoint's characters are escaped, never spliced.
+    let set = |c: &mut zenoh::Config, k: &str, v: serde_json::Value| {
+        c.insert_json5(k, &v.to_string())
             .map_err(|e| RuntimeError::Config(format!("{k}: {e}")))
     };
-    set(&mut c, "mode", &format!("\"{mode}\""))?;
-    set(&mut c, "listen/endpoints", &json_list(&listen))?;
-    set(&mut c, "connect/endpoints", &json_list(&connect))?;
+    set(&mut c, "mode", json!(mode))?;
+    set(&mut c, "listen/endpoints", json!(listen))?;
+    set(&mut c, "connect/endpoints", json!(connect))?;
     // A peer whose endpoint is not up yet (a launcher starting roles together, a machine
     // rebooting) retries from 100 ms, doubling to 1 s, instead of Zenoh's 1 s to 4 s.
     set(
         &mut c,
         "connect/retry",
-        r#"{"period_init_ms": 100, "period_max_ms": 1000, "period_increase_factor": 2}"#,
+        json!({"period_init_ms": 100, "period_max_ms": 1000, "period_increase_factor": 2}),
     )?;
-    set(&mut c, "scouting/multicast/enabled", "false")?;
-    set(&mut c, "timestamping/enabled", "true")?;
+    set(&mut c, "scouting/multicast/enabled", json!(false))?;
+    set(&mut c, "timestamping/enabled", json!(true))?;
     Ok(c)
 }
 
