@@ -17,7 +17,7 @@ use rig_runtime::{NetOverrides, now_ns, open, publisher, zenoh_err as z};
 use thiserror::Error;
 
 use crate::core::{CoreStats, CoreTiming, EstimatorCore, Output};
-use crate::histogram::Histogram;
+use crate::histogram::{Histogram, LatencySummary};
 
 #[derive(Debug, Error)]
 pub enum EstimatorError {
@@ -47,17 +47,17 @@ pub struct EstimatorReport {
     pub core: CoreStats,
     pub malformed: u64,
     /// Sample age on arrival (now − t_acq) [µs]: median, 99th percentile, largest.
-    pub age_us: [u64; 3],
+    pub age_us: LatencySummary,
     /// Latency of the host [µs]: median, 99th percentile, largest — from the Zenoh timestamp
     /// of the sample that completed a tick (when its agent published it) to the moment the
     /// tick's first estimate was published (the end-effector force of a robot; it goes out
     /// first): one Zenoh hop plus the estimation.
-    pub latency_us: [u64; 3],
+    pub latency_us: LatencySummary,
     /// The same, to the moment every estimate of the tick (each joint's too) was published.
-    pub all_published_us: [u64; 3],
+    pub all_published_us: LatencySummary,
     /// The transport part of that latency [µs]: from the same Zenoh timestamp to the sample's
     /// arrival in the host, before any estimation.
-    pub transport_us: [u64; 3],
+    pub transport_us: LatencySummary,
     /// Samples missing from the joints' sequence numbers (gaps; a restarted agent starts over).
     pub lost: u64,
     /// Time from the first to the last sample received [ns].

@@ -85,9 +85,34 @@ impl Histogram {
         self.max
     }
 
-    /// Median, 99th percentile, largest.
-    pub fn summary(&self) -> [u64; 3] {
-        [self.quantile(0.5), self.quantile(0.99), self.max]
+    /// Median, 99th percentile, largest, count.
+    pub fn summary(&self) -> LatencySummary {
+        LatencySummary {
+            p50: self.quantile(0.5),
+            p99: self.quantile(0.99),
+            max: self.max,
+            count: self.n,
+        }
+    }
+}
+
+/// A latency's median, 99th percentile and largest value [µs] and how many were measured: the
+/// one form every report (the estimator host, `rig up`, `rig bench`) gives them in. All 0 when
+/// nothing was measured.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, serde::Serialize)]
+pub struct LatencySummary {
+    pub p50: u64,
+    pub p99: u64,
+    pub max: u64,
+    pub count: u64,
+}
+
+impl LatencySummary {
+    /// The summary of `values` [µs] (through the histogram: exact below 1 ms, within 1 % above).
+    pub fn of(values: impl IntoIterator<Item = u64>) -> Self {
+        let mut h = Histogram::new();
+        values.into_iter().for_each(|v| h.record(v));
+        h.summary()
     }
 }
 
@@ -115,7 +140,11 @@ mod tests {
                 "q {q}: {got} vs {exact}"
             );
         }
-        assert_eq!(h.summary()[2], *sorted.last().unwrap());
-        assert_eq!(h.len(), 20_000);
+        let sum = h.summary();
+        assert_eq!(sum.max, *sorted.last().unwrap());
+        assert_eq!((sum.p50, sum.p99), (h.quantile(0.5), h.quantile(0.99)));
+        assert_eq!(sum.count, 20_000);
+        assert_eq!(LatencySummary::of(values.iter().copied()), sum);
+        assert_eq!(LatencySummary::of([]), LatencySummary::default());
     }
 }

@@ -18,6 +18,7 @@ use std::time::{Duration, Instant};
 
 use rig_config::{RigConfig, Topology};
 use rig_estimator::edge::{EstimatorOptions, EstimatorReport, run as run_estimator};
+use rig_estimator::histogram::LatencySummary;
 use rig_joint::agent::{AgentOptions, AgentReport, run as run_joint};
 use rig_protocol::{JointSample, encode};
 use rig_runtime::cli::positive_seconds;
@@ -103,38 +104,17 @@ pub fn run(args: &Args) -> Result<(), CliError> {
     }
 }
 
-/// Median and 99th percentile [µs].
-#[derive(Debug, Clone, Copy, Serialize)]
-struct Percentiles {
-    p50: u64,
-    p99: u64,
-}
-
-impl Percentiles {
-    fn of(mut v: Vec<u64>) -> Self {
-        if v.is_empty() {
-            return Self { p50: 0, p99: 0 };
-        }
-        v.sort_unstable();
-        let at = |q: f64| v[((v.len() - 1) as f64 * q).round() as usize];
-        Self {
-            p50: at(0.5),
-            p99: at(0.99),
-        }
-    }
-}
-
 #[derive(Debug, Serialize)]
 struct LatencyReport {
-    zenoh_rtt_us: Percentiles,
-    rig_latency_us: Percentiles,
+    zenoh_rtt_us: LatencySummary,
+    rig_latency_us: LatencySummary,
     /// Worst rig latency seen [µs].
     rig_latency_max_us: u64,
     /// Latency to the last estimate of the tick (each joint's) [µs].
-    rig_all_published_us: Percentiles,
+    rig_all_published_us: LatencySummary,
     /// The transport part of the rig latency: the completing sample's publication to its
     /// arrival in the estimator host [µs].
-    rig_transport_us: Percentiles,
+    rig_transport_us: LatencySummary,
     /// Samples the joint agents published, and those the estimator never received.
     sent: u64,
     lost: u64,
@@ -162,9 +142,9 @@ struct ThroughputReport {
     /// Estimates the estimator published per second.
     estimates_per_s: f64,
     /// Sample age at the estimator (now − acquisition time) [µs].
-    age_us: Percentiles,
+    age_us: LatencySummary,
     /// The estimator host's sample→estimate latency [µs] (see `rig bench latency`).
-    latency_us: Percentiles,
+    latency_us: LatencySummary,
     duration_s: f64,
 }
 
@@ -411,20 +391,11 @@ fn latency(a: &LatencyArgs) -> Result<(), CliError> {
     let sent: u64 = r.agents.iter().map(|a| a.samples).sum();
     let received = r.estimator.core.samples;
     let report = LatencyReport {
-        zenoh_rtt_us: Percentiles::of(rtt),
-        rig_latency_us: Percentiles {
-            p50: r.estimator.latency_us[0],
-            p99: r.estimator.latency_us[1],
-        },
-        rig_latency_max_us: r.estimator.latency_us[2],
-        rig_all_published_us: Percentiles {
-            p50: r.estimator.all_published_us[0],
-            p99: r.estimator.all_published_us[1],
-        },
-        rig_transport_us: Percentiles {
-            p50: r.estimator.transport_us[0],
-            p99: r.estimator.transport_us[1],
-        },
+        zenoh_rtt_us: LatencySummary::of(rtt),
+        rig_latency_us: r.estimator.latency_us,
+        rig_latency_max_us: r.estimator.latency_us.max,
+        rig_all_published_us: r.estimator.all_published_us,
+        rig_transport_us: r.estimator.transport_us,
         sent,
         lost: sent.saturating_sub(received),
         joints: cfg.joints.len(),
@@ -524,14 +495,8 @@ fn throughput(a: &ThroughputArgs) -> Result<(), CliError> {
         // One board: every joint it serves skips the same ticks.
         skipped_ticks: r.agents.first().map_or(0, |a| a.skipped_ticks),
         estimates_per_s: e.core.joint_estimates as f64 / secs,
-        age_us: Percentiles {
-            p50: e.age_us[0],
-            p99: e.age_us[1],
-        },
-        latency_us: Percentiles {
-            p50: e.latency_us[0],
-            p99: e.latency_us[1],
-        },
+        age_us: e.age_us,
+        latency_us: e.latency_us,
         duration_s: duration.as_secs_f64(),
     };
     if a.json {

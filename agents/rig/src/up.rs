@@ -429,7 +429,7 @@ async fn up(cfg: RigConfig, args: &Args) -> Result<(), CliError> {
     );
     println!(
         "sample age at the estimator: median {} µs, p99 {} µs, max {} µs",
-        est_report.age_us[0], est_report.age_us[1], est_report.age_us[2]
+        est_report.age_us.p50, est_report.age_us.p99, est_report.age_us.max
     );
     println!(
         "allocator: {} goals, {} requests, {} pivot commands sent",
