@@ -21,6 +21,7 @@
 //!
 //! No I/O beyond the Rerun sink; the Zenoh and MCAP edges live in the `rig` command.
 
+pub mod paths;
 mod scene;
 mod trail;
 

@@ -14,6 +14,7 @@ use rig_config::{JointKind, RigConfig};
 use rig_model::planar::{PlanarRobot, end_effector_force};
 use rig_protocol::{AnyMessage, JointState, StiffnessTriple, Topic};
 
+use crate::paths;
 use crate::trail::{Gate, Trail};
 
 /// Time series rate, loop trail (window, spacing, redraw), robot redraw [ns].
@@ -135,7 +136,7 @@ impl Scene {
             )
         };
         for j in &self.joints {
-            let p = format!("joints/{}", j.name);
+            let p = paths::joint(&j.name);
             line(rec, format!("{p}/pivot_mm"), "pivot [mm]", ESTIMATE)?;
             line(
                 rec,
@@ -166,13 +167,13 @@ impl Scene {
         for axis in ["x", "y"] {
             line(
                 rec,
-                format!("force/estimate/{axis}"),
+                paths::force("estimate", axis),
                 &format!("F̂{axis} [N]"),
                 ESTIMATE,
             )?;
             line(
                 rec,
-                format!("force/truth/{axis}"),
+                paths::force("truth", axis),
                 &format!("F{axis} true [N]"),
                 TRUTH,
             )?;
@@ -180,19 +181,19 @@ impl Scene {
         for c in ["xx", "xy", "yy"] {
             line(
                 rec,
-                format!("allocation/k/wanted/{c}"),
+                paths::stiffness("wanted", c),
                 &format!("wanted K{c} [N/m]"),
                 WANTED,
             )?;
             line(
                 rec,
-                format!("allocation/k/achieved/{c}"),
+                paths::stiffness("achieved", c),
                 &format!("allocated K{c} [N/m]"),
                 TRUTH,
             )?;
             line(
                 rec,
-                format!("allocation/k/estimated/{c}"),
+                paths::stiffness("estimated", c),
                 &format!("estimated K{c} [N/m]"),
                 ESTIMATE,
             )?;
@@ -203,7 +204,7 @@ impl Scene {
                 PlanarRobot::FiveBar(r) => vec![[0.0, 0.0], [(r.geometry.lb * 1e3) as f32, 0.0]],
             };
             rec.log_static(
-                "robot/bases",
+                paths::ROBOT_BASES,
                 &Points2D::new(bases)
                     .with_radii([4.0])
                     .with_colors([rgb(LINK)]),
@@ -244,7 +245,7 @@ impl Scene {
                 if j.series.pass(s.t_acq_ns)
                     && let Some(p) = s.pivot_m
                 {
-                    let path = format!("joints/{}/pivot_mm", j.name);
+                    let path = format!("{}/pivot_mm", paths::joint(&j.name));
                     self.scalar(rec, path, p * 1e3)?;
                 }
                 self.redraw_loop(rec, s.joint as usize, s.t_acq_ns)?;
@@ -261,7 +262,7 @@ impl Scene {
                         .push(t.t_acq_ns, t.deflection_rad.to_degrees(), -t.torque_nm);
                 }
                 if j.truth_series.pass(t.t_acq_ns) {
-                    let path = format!("joints/{}/stiffness/truth", j.name);
+                    let path = format!("{}/stiffness/truth", paths::joint(&j.name));
                     self.scalar(rec, path, t.stiffness_nm_per_rad)?;
                 }
                 if self.robot.is_some() {
@@ -287,7 +288,7 @@ impl Scene {
                     j.model.push(e.t_acq_ns, defl.to_degrees(), -e.torque_nm);
                 }
                 if j.estimate_series.pass(e.t_acq_ns) {
-                    let p = format!("joints/{}", j.name);
+                    let p = paths::joint(&j.name);
                     let awas = j.awas;
                     if let Some(k) = e.stiffness_nm_per_rad {
                         self.scalar(rec, format!("{p}/stiffness/estimate"), k)?;
@@ -315,12 +316,12 @@ impl Scene {
                 rec.set_timestamp_nanos_since_epoch(TIMELINE, e.t_ns as i64);
                 if self.ee_series.pass(e.t_ns) {
                     if let Some((fx, fy)) = e.force_n {
-                        self.scalar(rec, "force/estimate/x".into(), fx)?;
-                        self.scalar(rec, "force/estimate/y".into(), fy)?;
+                        self.scalar(rec, paths::force("estimate", "x"), fx)?;
+                        self.scalar(rec, paths::force("estimate", "y"), fy)?;
                     }
                     if let Some(k) = e.stiffness_n_per_m {
                         for (c, v) in [("xx", k.xx), ("xy", k.xy), ("yy", k.yy)] {
-                            self.scalar(rec, format!("allocation/k/estimated/{c}"), v)?;
+                            self.scalar(rec, paths::stiffness("estimated", c), v)?;
                         }
                     }
                 }
@@ -329,7 +330,7 @@ impl Scene {
                     if let Some(k) = e.stiffness_n_per_m {
                         self.stats.logged += 1;
                         rec.log(
-                            "allocation/ellipse/estimated",
+                            paths::ellipse("estimated"),
                             &LineStrips2D::new([ellipse(&k)]).with_colors([rgb(ESTIMATE)]),
                         )?;
                     }
@@ -342,22 +343,22 @@ impl Scene {
                         ("xy", r.target.xy, r.achieved.xy),
                         ("yy", r.target.yy, r.achieved.yy),
                     ] {
-                        self.scalar(rec, format!("allocation/k/wanted/{c}"), w)?;
-                        self.scalar(rec, format!("allocation/k/achieved/{c}"), a)?;
+                        self.scalar(rec, paths::stiffness("wanted", c), w)?;
+                        self.scalar(rec, paths::stiffness("achieved", c), a)?;
                     }
                     self.stats.logged += 2;
                     rec.log(
-                        "allocation/ellipse/wanted",
+                        paths::ellipse("wanted"),
                         &LineStrips2D::new([ellipse(&r.target)]).with_colors([rgb(WANTED)]),
                     )?;
                     rec.log(
-                        "allocation/ellipse/achieved",
+                        paths::ellipse("achieved"),
                         &LineStrips2D::new([ellipse(&r.achieved)]).with_colors([rgb(TRUTH)]),
                     )?;
                 } else {
                     self.stats.logged += 1;
                     rec.log(
-                        "status",
+                        paths::STATUS,
                         &TextLog::new(format!("allocation {} refused: {}", r.id, r.error))
                             .with_level(rerun::TextLogLevel::WARN),
                     )?;
@@ -379,7 +380,7 @@ impl Scene {
                 };
                 self.stats.logged += 1;
                 rec.log(
-                    "status",
+                    paths::STATUS,
                     &TextLog::new(format!("{who}: {}", s.text)).with_level(level),
                 )?;
                 // The estimator's residual monitor gets a view of its own.
@@ -397,7 +398,7 @@ impl Scene {
                     };
                     self.stats.logged += 1;
                     rec.log(
-                        "diagnosis",
+                        paths::DIAGNOSIS,
                         &TextLog::new(format!("{name}: {text}")).with_level(level),
                     )?;
                 }
@@ -419,7 +420,7 @@ impl Scene {
         if !view.redraw.pass(t_ns) {
             return Ok(());
         }
-        let p = format!("joints/{}/loop", view.name);
+        let p = paths::joint_loop(&view.name);
         if !view.measured.is_empty() {
             rec.log(
                 format!("{p}/measured"),
@@ -460,19 +461,19 @@ impl Scene {
             .collect();
         let ee = [(x * 1e3) as f32, -(y * 1e3) as f32];
         rec.log(
-            "robot/links",
+            paths::ROBOT_LINKS,
             &LineStrips2D::new(chains)
                 .with_colors([rgb(LINK)])
                 .with_radii([1.5]),
         )?;
         rec.log(
-            "robot/joints",
+            paths::ROBOT_JOINTS,
             &Points2D::new(joints)
                 .with_radii([3.0])
                 .with_colors([rgb(LINK)]),
         )?;
         rec.log(
-            "robot/end_effector",
+            paths::ROBOT_END_EFFECTOR,
             &Points2D::new([ee])
                 .with_radii([4.0])
                 .with_colors([rgb(ESTIMATE)]),
@@ -481,7 +482,7 @@ impl Scene {
         if let Some((fx, fy)) = force {
             self.stats.logged += 1;
             rec.log(
-                "robot/force/estimate",
+                paths::robot_force("estimate"),
                 &Arrows2D::from_vectors([[fx as f32 * MM_PER_N, -fy as f32 * MM_PER_N]])
                     .with_origins([ee])
                     .with_colors([rgb(ESTIMATE)]),
@@ -511,14 +512,14 @@ impl Scene {
             return Ok(());
         };
         if series {
-            self.scalar(rec, "force/truth/x".into(), f[0])?;
-            self.scalar(rec, "force/truth/y".into(), f[1])?;
+            self.scalar(rec, paths::force("truth", "x"), f[0])?;
+            self.scalar(rec, paths::force("truth", "y"), f[1])?;
         }
         if draw {
             self.stats.logged += 1;
             let at = [(c.pose.x * 1e3) as f32, -(c.pose.y * 1e3) as f32];
             rec.log(
-                "robot/force/truth",
+                paths::robot_force("truth"),
                 &Arrows2D::from_vectors([[f[0] as f32 * MM_PER_N, -f[1] as f32 * MM_PER_N]])
                     .with_origins([at])
                     .with_colors([rgb(TRUTH)]),
@@ -536,7 +537,7 @@ pub fn blueprint(cfg: &RigConfig) -> Blueprint {
         .iter()
         .map(|j| {
             Spatial2DView::new(format!("{} loop: deflection [deg] vs torque [N·m]", j.name))
-                .with_origin(format!("/joints/{}/loop", j.name))
+                .with_origin(paths::origin(&paths::joint_loop(&j.name)))
                 .into()
         })
         .collect();
@@ -545,7 +546,7 @@ pub fn blueprint(cfg: &RigConfig) -> Blueprint {
         .iter()
         .map(|j| {
             TimeSeriesView::new(format!("{}: pivot, stiffness, residual", j.name))
-                .with_origin(format!("/joints/{}", j.name))
+                .with_origin(paths::origin(&paths::joint(&j.name)))
                 .with_contents([
                     "$origin/pivot_mm",
                     "$origin/stiffness/**",
@@ -559,7 +560,7 @@ pub fn blueprint(cfg: &RigConfig) -> Blueprint {
                 .filter(|j| matches!(j.kind, JointKind::Awas { .. }))
                 .map(|j| {
                     TimeSeriesView::new(format!("{}: inertia, damping (±2σ)", j.name))
-                        .with_origin(format!("/joints/{}", j.name))
+                        .with_origin(paths::origin(&paths::joint(&j.name)))
                         .with_contents(["$origin/inertia/**", "$origin/damping/**"])
                         .into()
                 }),
@@ -567,23 +568,25 @@ pub fn blueprint(cfg: &RigConfig) -> Blueprint {
         .collect();
     let left = Vertical::new([
         Spatial2DView::new("robot [mm], force arrows 5 mm/N")
-            .with_origin("/robot")
+            .with_origin(paths::origin(paths::ROBOT))
             .into(),
         TimeSeriesView::new("end-effector force [N]")
-            .with_origin("/force")
+            .with_origin(paths::origin(paths::FORCE))
             .into(),
     ]);
     let middle = Vertical::new([Grid::new(loops).into(), Tabs::new(series).into()]);
     let right = Vertical::new([
         Spatial2DView::new("stiffness ellipse K·u [N/mm]")
-            .with_origin("/allocation/ellipse")
+            .with_origin(paths::origin(paths::ELLIPSE))
             .into(),
         TimeSeriesView::new("operational stiffness [N/m]")
-            .with_origin("/allocation/k")
+            .with_origin(paths::origin(paths::STIFFNESS))
             .into(),
-        TextLogView::new("status").with_origin("/status").into(),
+        TextLogView::new("status")
+            .with_origin(paths::origin(paths::STATUS))
+            .into(),
         TextLogView::new("residual diagnosis")
-            .with_origin("/diagnosis")
+            .with_origin(paths::origin(paths::DIAGNOSIS))
             .into(),
     ]);
     let root: ContainerLike = if cfg.topology.is_robot() {
@@ -592,9 +595,11 @@ pub fn blueprint(cfg: &RigConfig) -> Blueprint {
         Horizontal::new([
             middle.into(),
             Vertical::new([
-                TextLogView::new("status").with_origin("/status").into(),
+                TextLogView::new("status")
+                    .with_origin(paths::origin(paths::STATUS))
+                    .into(),
                 TextLogView::new("residual diagnosis")
-                    .with_origin("/diagnosis")
+                    .with_origin(paths::origin(paths::DIAGNOSIS))
                     .into(),
             ])
             .into(),
