@@ -79,3 +79,30 @@ fn a_rerun_viewer_url_given_to_connect_is_refused_with_the_flag_it_belongs_to() 
         );
     }
 }
+
+#[test]
+fn a_stiffness_goal_that_is_not_a_percentage_of_the_range_is_refused() {
+    let cfg = config();
+    let cfg = cfg.to_str().unwrap();
+    for bad in ["nan", "-5", "150", "inf"] {
+        for cmd in [
+            vec!["up", "--duration", "1", "--percent", bad],
+            vec![
+                "allocate",
+                "--config",
+                cfg,
+                "--at",
+                "75,200",
+                "--percent",
+                bad,
+            ],
+        ] {
+            let (code, err) = run("rig", &cmd);
+            assert_eq!(code, Some(2), "{cmd:?}: {err}");
+            assert!(
+                err.contains("--percent") && err.contains("percentage"),
+                "{cmd:?}: {err}"
+            );
+        }
+    }
+}

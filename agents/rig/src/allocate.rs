@@ -28,7 +28,7 @@ pub struct Args {
     #[arg(long, value_name = "KXX,KYY[,KXY]", value_parser = parse_k, allow_hyphen_values = true)]
     k: Option<OperationalStiffness>,
     /// Paper B's decoupled target: k_xx and k_yy at P % of the range S·k_min..S·k_max, k_xy = 0
-    #[arg(long, value_name = "P")]
+    #[arg(long, value_name = "P", value_parser = percent_of_range, allow_negative_numbers = true)]
     percent: Option<f64>,
     /// Print one JSON object instead of the table
     #[arg(long)]
@@ -57,6 +57,16 @@ fn parse_pair(s: &str) -> Result<(f64, f64), String> {
         v => Err(format!(
             "expected X_MM,Y_MM (two numbers), got {} values",
             v.len()
+        )),
+    }
+}
+
+/// Parses a percentage of the stiffness range: a finite number from 0 to 100.
+pub(crate) fn percent_of_range(s: &str) -> Result<f64, String> {
+    match s.trim().parse::<f64>() {
+        Ok(p) if (0.0..=100.0).contains(&p) => Ok(p),
+        _ => Err(format!(
+            "{s} is not a percentage of the stiffness range (0 to 100)"
         )),
     }
 }

@@ -40,7 +40,7 @@ pub struct Args {
     #[command(flatten)]
     net: NetArgs,
     /// Decoupled stiffness goal for the allocator, percent of the range (robots only)
-    #[arg(long, default_value_t = 25.0, value_name = "P")]
+    #[arg(long, default_value_t = 25.0, value_name = "P", value_parser = crate::allocate::percent_of_range, allow_negative_numbers = true)]
     percent: f64,
     /// Seed of the simulated sensors
     #[arg(long, default_value_t = 1)]
