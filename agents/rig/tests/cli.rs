@@ -221,9 +221,14 @@ fn allocate_refuses_what_it_cannot_do() {
     let (out, _) = allocate_json(&["--at", "75,200", "--k", "1e6,100"]);
     assert_eq!(out.status.code(), Some(3));
     assert!(text(&out.stderr).contains("k_xx"), "{}", text(&out.stderr));
-    // Percent outside [0, 100].
+    // Percent outside [0, 100]: a usage error, refused while parsing.
     let (out, _) = allocate_json(&["--at", "75,200", "--percent", "140"]);
-    assert_eq!(out.status.code(), Some(3));
+    assert_eq!(out.status.code(), Some(2));
+    assert!(
+        text(&out.stderr).contains("140 is not a percentage"),
+        "{}",
+        text(&out.stderr)
+    );
     // A single-joint rig has no operational space.
     let out = rig(&[
         "allocate",
