@@ -117,17 +117,9 @@ fn outcome(c: &Case) -> Outcome {
 fn plant_meets_its_targets(plant: Plant, alone: f64, paid_off: f64) {
     let ci = |inject: Option<Inject>, seeds: std::ops::Range<u64>| -> Vec<Case> {
         seeds
-            .map(|seed| Case {
-                plant,
-                inject,
-                motion: if seed % 2 == 0 {
-                    Motion::MultiSine
-                } else {
-                    Motion::RampHold
-                },
-                rate_hz: if seed % 2 == 0 { 500.0 } else { 200.0 },
-                noise: 0.005,
-                seed: 100 + seed,
+            .map(|seed| {
+                let rate_hz = if seed % 2 == 0 { 500.0 } else { 200.0 };
+                case(plant, inject, 100 + seed, rate_hz, 0.005)
             })
             .collect()
     };
@@ -188,19 +180,28 @@ fn on_the_link_equation_each_effect_is_named_alone_and_clean_data_gets_nothing()
     plant_meets_its_targets(Plant::Link, 0.7, 0.7);
 }
 
+/// One case: even seeds a multi-sine, odd ones ramp-and-hold.
+fn case(plant: Plant, inject: Option<Inject>, seed: u64, rate_hz: f64, noise: f64) -> Case {
+    Case {
+        plant,
+        inject,
+        motion: if seed.is_multiple_of(2) {
+            Motion::MultiSine
+        } else {
+            Motion::RampHold
+        },
+        rate_hz,
+        noise,
+        seed,
+    }
+}
+
 fn cases(plant: Plant, inject: Option<Inject>, seeds: std::ops::Range<u64>) -> Vec<Case> {
     seeds
-        .map(|seed| Case {
-            plant,
-            inject,
-            motion: if seed % 2 == 0 {
-                Motion::MultiSine
-            } else {
-                Motion::RampHold
-            },
-            rate_hz: [1000.0, 200.0, 500.0, 100.0][(seed / 2 % 4) as usize],
-            noise: if seed % 3 == 0 { 0.02 } else { 0.005 },
-            seed,
+        .map(|seed| {
+            let rate_hz = [1000.0, 200.0, 500.0, 100.0][(seed / 2 % 4) as usize];
+            let noise = if seed % 3 == 0 { 0.02 } else { 0.005 };
+            case(plant, inject, seed, rate_hz, noise)
         })
         .collect()
 }
