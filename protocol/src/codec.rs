@@ -1,4 +1,5 @@
-//! The envelope and primitives of the wire format (`protocol/WIRE.md` is the spec).
+//! The envelope and primitives of the wire format (`protocol/WIRE.md` is the spec). It knows
+//! kinds only as [`Kind`] bytes and values only as bytes: no message type is named here.
 //!
 //! ```text
 //! offset size  field
@@ -11,6 +12,9 @@
 
 use thiserror::Error;
 
+use crate::kind::Kind;
+use crate::validation::ValidationError;
+
 /// The first two bytes of every message.
 pub const MAGIC: [u8; 2] = *b"VR";
 /// The encoding version this crate writes and reads.
@@ -19,37 +23,6 @@ pub const VERSION: u8 = 1;
 pub const HEADER_LEN: usize = 8;
 /// Largest body accepted (1 MiB): a bound on what a malformed length can make us allocate.
 pub const MAX_BODY: usize = 1 << 20;
-
-/// Message kinds (byte 3 of the header).
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-#[repr(u8)]
-pub enum Kind {
-    JointSample = 1,
-    JointCommand = 2,
-    JointStatus = 3,
-    JointEstimate = 4,
-    EeEstimate = 5,
-    AllocationRequest = 6,
-    AllocationResult = 7,
-    SimTruth = 8,
-}
-
-impl Kind {
-    /// The kind for a header byte.
-    pub fn from_u8(b: u8) -> Option<Self> {
-        Some(match b {
-            1 => Kind::JointSample,
-            2 => Kind::JointCommand,
-            3 => Kind::JointStatus,
-            4 => Kind::JointEstimate,
-            5 => Kind::EeEstimate,
-            6 => Kind::AllocationRequest,
-            7 => Kind::AllocationResult,
-            8 => Kind::SimTruth,
-            _ => return None,
-        })
-    }
-}
 
 /// Why bytes did not decode to a message.
 #[derive(Debug, Clone, PartialEq, Error)]
@@ -75,7 +48,7 @@ pub enum DecodeError {
     #[error("field {field}: {reason}")]
     BadField { field: &'static str, reason: String },
     #[error("invalid message: {0}")]
-    Invalid(#[from] crate::messages::ValidationError),
+    Invalid(#[from] ValidationError),
 }
 
 /// Appends little-endian fields.
@@ -150,7 +123,7 @@ impl<'a> Reader<'a> {
         if bytes[2] != VERSION {
             return Err(DecodeError::UnsupportedVersion(bytes[2]));
         }
-        let kind = Kind::from_u8(bytes[3]).ok_or(DecodeError::UnknownKind(bytes[3]))?;
+        let kind = Kind::try_from(bytes[3]).map_err(|e| DecodeError::UnknownKind(e.0))?;
         let declared = u32::from_le_bytes([bytes[4], bytes[5], bytes[6], bytes[7]]) as usize;
         if declared > MAX_BODY {
             return Err(DecodeError::TooLarge(declared));

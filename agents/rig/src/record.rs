@@ -21,19 +21,15 @@ use crate::error::CliError;
 /// Message encoding of every channel.
 pub const ENCODING: &str = "rig-wire/1";
 
-fn schema_of(kind: u8) -> (&'static str, &'static str) {
-    match Kind::from_u8(kind) {
-        Some(Kind::JointSample) => ("rig.JointSample", "<2sBBI <HHQQdddddd"),
-        Some(Kind::JointCommand) => ("rig.JointCommand", "<2sBBI <HHQQdddB"),
-        Some(Kind::JointStatus) => ("rig.JointStatus", "<2sBBI <HBQQH + utf8"),
-        Some(Kind::JointEstimate) => ("rig.JointEstimate", "<2sBBI <HHQQddddddd"),
-        Some(Kind::EeEstimate) => ("rig.EeEstimate", "<2sBBI <HIQQdddddddd"),
-        Some(Kind::AllocationRequest) => ("rig.AllocationRequest", "<2sBBI <QddBddd"),
-        Some(Kind::AllocationResult) => {
-            ("rig.AllocationResult", "<2sBBI <QBddddddd B n*d n*d H utf8")
-        }
-        Some(Kind::SimTruth) => ("rig.SimTruth", "<2sBBI <HQQdddd"),
-        None => ("rig.Unknown", "not a rig message"),
+/// A kind's MCAP schema: its name and its layout (the envelope's and the body's Python
+/// `struct` formats, from the wire table).
+fn schema_of(kind: u8) -> (String, String) {
+    match Kind::try_from(kind) {
+        Ok(k) => (
+            format!("rig.{}", k.name()),
+            format!("<2sBBI {}", k.body_format()),
+        ),
+        Err(_) => ("rig.Unknown".into(), "not a rig message".into()),
     }
 }
 
@@ -113,7 +109,7 @@ pub fn record(a: &RecordArgs) -> Result<(), CliError> {
                         Some(&id) => id,
                         None => {
                             let (name, data) = schema_of(kind);
-                            let id = w.add_schema(name, ENCODING, data.as_bytes()).map_err(mcap_err)?;
+                            let id = w.add_schema(&name, ENCODING, data.as_bytes()).map_err(mcap_err)?;
                             schemas.insert(kind, id);
                             id
                         }
