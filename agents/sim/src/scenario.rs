@@ -51,7 +51,7 @@ use crate::effects::Effects;
 use crate::lever_joint::{LeverJointPlant, SpringHysteresis};
 use crate::noise::{DelayLine, Noise, quantize};
 use crate::planar_rig::{PlanarRigSim, PlanarSensors, Stroke};
-use crate::reproduce::paper_b::bench_path;
+use crate::world::bench_path;
 
 /// The stiffness motor's incremental encoder: 4096 counts per revolution of the ball-screw
 /// motor (its angle runs over hundreds of radians, so it needs no absolute encoder).

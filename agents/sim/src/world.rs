@@ -2,12 +2,20 @@
 //! effector along guide lines, stroke after stroke (x, then y, then again). Every simulated
 //! joint agent evaluates the same world at its acquisition times, so agents on different
 //! processes agree without talking: joint angles follow from kinematics alone (the motion is
-//! prescribed), and each agent's own torque from its own joint.
+//! prescribed), and each agent's own torque from its own joint. On a single-joint bench the
+//! hand rotates the output link back and forth instead ([`bench_path`]).
 
 use nalgebra::Vector2;
 use rig_model::planar::{KinematicsError, PlanarRobot, end_effector_force, wrap_angle};
 
+use crate::noise::Noise;
 use crate::planar_rig::Stroke;
+
+/// Stroke amplitude [m] of the simulated hand in a running robot rig (every simulated joint
+/// agent and every scorer of its estimates uses the same world).
+pub const HAND_STROKE_M: f64 = 0.006;
+/// Duration [s] of one stroke of the simulated hand.
+pub const HAND_STROKE_S: f64 = 4.0;
 
 /// Strokes repeated forever.
 #[derive(Debug, Clone)]
@@ -80,6 +88,26 @@ impl StrokeWorld {
         let c = self.robot.at_position(x, y)?;
         end_effector_force(&c.g_u_a, torques)
     }
+}
+
+/// A deterministic back-and-forth deflection path of varying amplitude with occasional
+/// minor loops, as a hand rotating the output link "back and forth randomly" (paper B §3.2).
+pub fn bench_path(n: usize, ts: f64, amplitude: f64, seed: u64) -> Vec<f64> {
+    let mut rng = Noise::new(seed);
+    let tau = std::f64::consts::TAU;
+    let (p1, p2, p3) = (
+        tau * rng.uniform(),
+        tau * rng.uniform(),
+        tau * rng.uniform(),
+    );
+    (0..n)
+        .map(|i| {
+            let t = i as f64 * ts;
+            let env = 0.6 + 0.3 * (tau * 0.07 * t + p1).sin();
+            let main = (tau * 0.5 * t + 0.8 * (tau * 0.13 * t + p2).sin()).sin();
+            amplitude * (env * main + 0.12 * (tau * 1.7 * t + p3).sin())
+        })
+        .collect()
 }
 
 #[cfg(test)]

@@ -22,6 +22,7 @@ use crate::effects::Effects;
 use crate::lever_joint::{LeverJointPlant, SpringHysteresis};
 use crate::noise::{Noise, quantize};
 use crate::planar_rig::{PlanarRigSim, PlanarSensors, Stroke};
+use crate::world::bench_path;
 
 /// Lengths and noise of the runs.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -118,26 +119,6 @@ pub struct PaperBReport {
     pub torque_mae: Vec<TorqueRow>,
     pub force: Vec<ForceRow>,
     pub decoupling: Vec<DecouplingRow>,
-}
-
-/// A deterministic back-and-forth deflection path of varying amplitude with occasional
-/// minor loops, as a hand rotating the output link "back and forth randomly" (paper B §3.2).
-pub fn bench_path(n: usize, ts: f64, amplitude: f64, seed: u64) -> Vec<f64> {
-    let mut rng = Noise::new(seed);
-    let tau = std::f64::consts::TAU;
-    let (p1, p2, p3) = (
-        tau * rng.uniform(),
-        tau * rng.uniform(),
-        tau * rng.uniform(),
-    );
-    (0..n)
-        .map(|i| {
-            let t = i as f64 * ts;
-            let env = 0.6 + 0.3 * (tau * 0.07 * t + p1).sin();
-            let main = (tau * 0.5 * t + 0.8 * (tau * 0.13 * t + p2).sin()).sin();
-            amplitude * (env * main + 0.12 * (tau * 1.7 * t + p3).sin())
-        })
-        .collect()
 }
 
 fn lever_of(cfg: &RigConfig) -> Result<LeverVsa, ReproduceError> {
