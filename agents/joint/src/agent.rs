@@ -14,15 +14,18 @@ use rig_protocol::{
 use rig_runtime::{NetOverrides, now_ns, open, publisher, zenoh, zenoh_err as z};
 use thiserror::Error;
 
-use crate::backend::{Applied, BackendError, Board, SimBackend, joint_index};
+use crate::board::{
+    Applied, BoardError, BoardRunner, JointBoard, Reading, SafeState, WatchdogAction, joint_index,
+    unknown_joint,
+};
 use crate::guard::{GuardLimits, JointGuard, Verdict};
-use crate::hardware::{DynamixelBoard, PortOverrides};
+use crate::hardware::{BoardPlan, DynamixelBoard, PortOverrides};
 
 /// Errors that stop the agent (bad input never does: it is reported and dropped).
 #[derive(Debug, Error)]
 pub enum AgentError {
     #[error(transparent)]
-    Backend(#[from] BackendError),
+    Board(#[from] BoardError),
     #[error(transparent)]
     Runtime(#[from] rig_runtime::RuntimeError),
 }
@@ -46,25 +49,36 @@ pub struct AgentOptions {
     /// The names in the config of the joints this board serves (at least one).
     pub joints: Vec<String>,
     pub net: NetOverrides,
-    /// Start of the simulated world's time [ns since the UNIX epoch].
+    /// Start of the rig's time [ns since the UNIX epoch]: the simulated world's zero.
     pub start_ns: u64,
-    pub seed: u64,
     /// Stop after this long (None: until shutdown).
     pub duration: Option<Duration>,
-    /// Undeclared effects of the simulated joints (none by default).
-    pub effects: rig_sim::effects::Effects,
     /// Where readings come from.
     pub backend: BackendKind,
 }
 
-/// The backend an agent runs.
-#[derive(Debug, Clone, Default)]
+/// The board an agent runs.
+#[derive(Debug, Clone)]
 pub enum BackendKind {
-    /// The simulated joints (default).
-    #[default]
-    Sim,
+    /// The simulated joints, their sensors seeded (joint `j` with `seed + j`), with
+    /// undeclared effects (none by default). Needs the `sim` feature.
+    Sim {
+        seed: u64,
+        #[cfg(feature = "sim")]
+        effects: rig_sim::effects::Effects,
+    },
     /// Dynamixel servos and the encoder bridge, at the config's ports or these.
     Dynamixel(PortOverrides),
+}
+
+impl Default for BackendKind {
+    fn default() -> Self {
+        BackendKind::Sim {
+            seed: 1,
+            #[cfg(feature = "sim")]
+            effects: Default::default(),
+        }
+    }
 }
 
 /// What the agent did for one joint.
@@ -116,6 +130,8 @@ struct Served {
     commands: zenoh::pubsub::Subscriber<zenoh::handlers::FifoChannelHandler<zenoh::sample::Sample>>,
     status_key: String,
     status_seq: u64,
+    /// Where the joint's stiffness actuator was at the last reading (the guard's reference).
+    actuator: f64,
     report: AgentReport,
     _token: zenoh::liveliness::LivelinessToken,
 }
@@ -145,7 +161,7 @@ impl Served {
     async fn commands(
         &mut self,
         session: &zenoh::Session,
-        board: &mut Board,
+        board: &mut BoardRunner,
         now: u64,
     ) -> Result<(), AgentError> {
         while let Ok(Some(s)) = self.commands.try_recv() {
@@ -156,7 +172,7 @@ impl Served {
                     eprintln!("rig-joint {}: dropped a malformed command: {e}", self.name);
                     continue;
                 }
-                Ok(cmd) => self.guard.on_command(&cmd, now, board.actuator(self.k)),
+                Ok(cmd) => self.guard.on_command(&cmd, now, self.actuator),
             };
             match verdict {
                 Verdict::Accepted {
@@ -164,10 +180,16 @@ impl Served {
                     motor_goal,
                     torque_enable,
                 } => {
-                    if let Some(g) = actuator_goal {
-                        board.set_actuator_goal(self.k, g);
-                    }
-                    match board.apply(self.k, motor_goal, torque_enable)? {
+                    let k = self.k;
+                    let applied = board
+                        .call(move |b| {
+                            if let Some(g) = actuator_goal {
+                                b.set_actuator_goal(k, g);
+                            }
+                            b.apply(k, motor_goal, torque_enable)
+                        })
+                        .await??;
+                    match applied {
                         Applied::Done => self.report.commands_accepted += 1,
                         Applied::Refused(why) => {
                             self.report.commands_rejected += 1;
@@ -181,11 +203,13 @@ impl Served {
                 }
             }
         }
-        if let Some(state) = self.guard.on_tick(now, board.actuator(self.k)) {
-            board.on_watchdog(self.k, self.guard.goal())?;
-            let what = match board {
-                Board::Sim(_) => format!("holding the {} where it is", self.limits.actuator_name),
-                Board::Dynamixel(_) => "torque off".to_string(),
+        if let Some(state) = self.guard.on_tick(now, self.actuator) {
+            let (k, hold_at) = (self.k, self.guard.goal());
+            let what = match board.call(move |b| b.on_watchdog(k, hold_at)).await?? {
+                WatchdogAction::Held => {
+                    format!("holding the {} where it is", self.limits.actuator_name)
+                }
+                WatchdogAction::TorqueOff => "torque off".to_string(),
             };
             let text = format!(
                 "no command for {:.0} ms: {what}",
@@ -197,8 +221,9 @@ impl Served {
     }
 
     /// Publishes joint's reading taken at grid time `t_acq` (and the simulated truth).
-    async fn publish(&mut self, t_acq: u64, r: &crate::backend::Reading) -> Result<(), AgentError> {
+    async fn publish(&mut self, t_acq: u64, r: &Reading) -> Result<(), AgentError> {
         self.report.samples += 1;
+        self.actuator = r.actuator;
         let sample = JointSample {
             joint: self.index,
             seq: self.report.samples,
@@ -232,26 +257,25 @@ impl Served {
     }
 }
 
-/// Runs `f`, which may block on serial I/O, off the async workers' backs where the runtime
-/// allows it (a multi-threaded one; `block_in_place` would panic on a current-thread one).
-fn blocking<T>(f: impl FnOnce() -> T) -> T {
-    match tokio::runtime::Handle::try_current().map(|h| h.runtime_flavor()) {
-        Ok(tokio::runtime::RuntimeFlavor::MultiThread) => tokio::task::block_in_place(f),
-        _ => f(),
-    }
-}
-
-/// Opens the board's backend for joints `js` (indices into the config).
-fn open_board(opts: &AgentOptions, js: &[usize]) -> Result<Board, BackendError> {
+/// Opens the board of joints `js` (indices into the config): a simulation inline, hardware
+/// on a thread that owns its ports (the plan is checked before any port is touched).
+async fn open_board(opts: &AgentOptions, js: &[usize]) -> Result<BoardRunner, BoardError> {
     match &opts.backend {
-        BackendKind::Sim => js
-            .iter()
-            .map(|&j| SimBackend::new(&opts.cfg, j, opts.seed.wrapping_add(j as u64), opts.effects))
-            .collect::<Result<Vec<_>, _>>()
-            .map(Board::Sim),
-        BackendKind::Dynamixel(ports) => blocking(|| DynamixelBoard::open(&opts.cfg, js, ports))
-            .map(|b| Board::Dynamixel(Box::new(b)))
-            .map_err(BackendError::from),
+        #[cfg(feature = "sim")]
+        BackendKind::Sim { seed, effects } => {
+            let b = crate::sim_board::SimBoard::new(&opts.cfg, js, *seed, *effects)?;
+            Ok(BoardRunner::inline(Box::new(b)))
+        }
+        #[cfg(not(feature = "sim"))]
+        BackendKind::Sim { .. } => Err(BoardError::NoSimulator),
+        BackendKind::Dynamixel(ports) => {
+            let plan = BoardPlan::from_config(&opts.cfg, js, ports)?;
+            BoardRunner::on_thread(move || {
+                let b = DynamixelBoard::open(&plan)?;
+                Ok(Box::new(b) as Box<dyn JointBoard>)
+            })
+            .await
+        }
     }
 }
 
@@ -260,19 +284,22 @@ fn open_board(opts: &AgentOptions, js: &[usize]) -> Result<Board, BackendError> 
 async fn fault(
     session: &zenoh::Session,
     served: &mut [Served],
-    board: Option<&mut Board>,
+    board: Option<&mut BoardRunner>,
     e: AgentError,
 ) -> AgentError {
     let mut text = format!("fault: {e}");
     if let Some(b) = board {
-        let failed = blocking(|| b.safe_state());
-        text.push_str(if failed.is_empty() {
-            "; torque off"
-        } else {
-            "; torque off failed on some servos"
-        });
-        for f in failed {
-            eprintln!("rig-joint: torque off: {f}");
+        match b.call(|b| b.safe_state()).await {
+            Ok(SafeState::NothingToSwitch) => {}
+            Ok(SafeState::TorqueOff) => text.push_str("; torque off"),
+            Ok(SafeState::TorqueOffFailed(failed)) => {
+                text.push_str("; torque off failed on some servos");
+                for f in failed {
+                    eprintln!("rig-joint: torque off: {f}");
+                }
+            }
+            // The board's thread is gone: its Drop has turned torque off, or tried to.
+            Err(_) => text.push_str("; the board's thread stopped (its drop turns torque off)"),
         }
     }
     for joint in served.iter_mut() {
@@ -292,15 +319,7 @@ pub async fn run(
 ) -> Result<Vec<AgentReport>, AgentError> {
     let cfg = &opts.cfg;
     if opts.joints.is_empty() {
-        return Err(BackendError::UnknownJoint(
-            String::new(),
-            cfg.joints
-                .iter()
-                .map(|j| j.name.as_str())
-                .collect::<Vec<_>>()
-                .join(", "),
-        )
-        .into());
+        return Err(unknown_joint(cfg, "").into());
     }
     let js = opts
         .joints
@@ -326,6 +345,7 @@ pub async fn run(
                 .map_err(z)?,
             status_key: keys.joint_status(name)?,
             status_seq: 0,
+            actuator: f64::NAN,
             report: AgentReport::default(),
             _token: session
                 .liveliness()
@@ -335,12 +355,21 @@ pub async fn run(
         });
     }
     // The hardware is opened once every joint can report what went wrong.
-    let mut board = match open_board(&opts, &js) {
+    let mut board = match open_board(&opts, &js).await {
         Ok(b) => b,
         Err(e) => return Err(fault(&session, &mut served, None, e.into()).await),
     };
-    for joint in &mut served {
-        joint.guard = JointGuard::new(joint.index, joint.limits, board.actuator(joint.k));
+    let ks: Vec<usize> = served.iter().map(|j| j.k).collect();
+    let actuators = match board
+        .call(move |b| ks.iter().map(|&k| b.actuator(k)).collect::<Vec<_>>())
+        .await
+    {
+        Ok(a) => a,
+        Err(e) => return Err(fault(&session, &mut served, Some(&mut board), e.into()).await),
+    };
+    for (joint, actuator) in served.iter_mut().zip(actuators) {
+        joint.actuator = actuator;
+        joint.guard = JointGuard::new(joint.index, joint.limits, actuator);
         let text = format!("joint {} up ({} backend)", joint.name, board.name());
         joint.status(&session, JointState::Ok, text).await?;
     }
@@ -349,17 +378,18 @@ pub async fn run(
     if let Err(e) = result {
         return Err(fault(&session, &mut served, Some(&mut board), e).await);
     }
-    let failed = blocking(|| board.safe_state());
+    let safe = board.call(|b| b.safe_state()).await;
     let mut reports = Vec::new();
     for mut joint in served {
-        let text = match (&board, failed.is_empty()) {
-            (Board::Sim(_), _) => format!("joint {} stopped", joint.name),
-            (Board::Dynamixel(_), true) => format!("joint {} stopped; torque off", joint.name),
-            (Board::Dynamixel(_), false) => format!(
+        let text = match &safe {
+            Ok(SafeState::NothingToSwitch) => format!("joint {} stopped", joint.name),
+            Ok(SafeState::TorqueOff) => format!("joint {} stopped; torque off", joint.name),
+            Ok(SafeState::TorqueOffFailed(failed)) => format!(
                 "joint {} stopped; torque off failed: {}",
                 joint.name,
                 failed.join("; ")
             ),
+            Err(e) => format!("joint {} stopped; {e}", joint.name),
         };
         joint.status(&session, JointState::Stopped, text).await?;
         reports.push(joint.report);
@@ -375,7 +405,7 @@ async fn sample_loop(
     opts: &AgentOptions,
     session: &zenoh::Session,
     served: &mut [Served],
-    board: &mut Board,
+    board: &mut BoardRunner,
     shutdown: impl std::future::Future<Output = ()>,
 ) -> Result<(), AgentError> {
     // Let gossip link this peer to the rig's other peers (estimator, recorders, viewers)
@@ -418,11 +448,7 @@ async fn sample_loop(
             last_tick = Some(t);
             let t_acq = t * period_ns;
             let t_world = t_acq.saturating_sub(opts.start_ns) as f64 * 1e-9;
-            let readings = if hardware {
-                blocking(|| board.read(t_world, dt))?
-            } else {
-                board.read(t_world, dt)?
-            };
+            let readings = board.call(move |b| b.read(t_world, dt)).await??;
             for (joint, r) in served.iter_mut().zip(&readings) {
                 joint.publish(t_acq, r).await?;
             }

@@ -59,6 +59,31 @@ struct Args {
     sim_effects: Option<std::path::PathBuf>,
 }
 
+/// The simulated board's options; a build without the `sim` feature refuses them by name.
+fn sim_backend(a: &Args) -> Result<BackendKind, String> {
+    #[cfg(feature = "sim")]
+    {
+        let effects = match a
+            .sim_effects
+            .as_deref()
+            .map(rig_sim::effects::Effects::load)
+        {
+            None => rig_sim::effects::Effects::default(),
+            Some(Ok(e)) => e,
+            Some(Err(e)) => return Err(format!("--sim-effects {e}")),
+        };
+        Ok(BackendKind::Sim {
+            seed: a.seed,
+            effects,
+        })
+    }
+    #[cfg(not(feature = "sim"))]
+    {
+        let _ = a;
+        Err("this rig-joint was built without the simulator (feature `sim`): use --backend dynamixel".into())
+    }
+}
+
 fn main() -> ExitCode {
     let a = Args::parse();
     if a.backend == Backend::Sim && (a.bus.is_some() || a.bridge.is_some()) {
@@ -74,20 +99,20 @@ fn main() -> ExitCode {
             return ExitCode::from(1);
         }
     };
-    let effects = match a
-        .sim_effects
-        .as_deref()
-        .map(rig_sim::effects::Effects::load)
-    {
-        None => rig_sim::effects::Effects::default(),
-        Some(Ok(e)) => e,
-        Some(Err(e)) => {
-            eprintln!("error: --sim-effects {e}");
-            return ExitCode::from(1);
-        }
-    };
     let backend = match a.backend {
-        Backend::Sim => BackendKind::Sim,
+        Backend::Sim => match sim_backend(&a) {
+            Ok(b) => b,
+            Err(e) => {
+                eprintln!("error: {e}");
+                return ExitCode::from(1);
+            }
+        },
+        Backend::Dynamixel if a.sim_effects.is_some() => {
+            eprintln!(
+                "error: --sim-effects are effects of the simulated joints; drop it with --backend dynamixel"
+            );
+            return ExitCode::from(2);
+        }
         Backend::Dynamixel => BackendKind::Dynamixel(PortOverrides {
             bus: a.bus.clone(),
             bridge: a.bridge.clone(),
@@ -95,12 +120,10 @@ fn main() -> ExitCode {
     };
     let opts = AgentOptions {
         backend,
-        effects,
         cfg,
         joints: a.joint.clone(),
         net: a.net.overrides(),
         start_ns: a.start_ns.unwrap_or_else(now_ns),
-        seed: a.seed,
         duration: a.run_for.duration,
     };
     let rt = match tokio_runtime(Some(2)) {

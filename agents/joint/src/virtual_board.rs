@@ -4,7 +4,7 @@
 //! reads, protocol 1.0, goal writes, the bridge's frames, faults) runs in tests and on a laptop
 //! (`rig virtual-board`).
 //!
-//! A thread steps the simulated joints ([`SimBackend`], the same plant the `sim` backend
+//! A thread steps the simulated joints ([`SimJoint`], the same plant the `sim` board
 //! uses, at the same world time) every `STEP` and writes what real hardware would show: main
 //! servo present positions (the world's motor angles + `main_zero_deg`), encoder counts
 //! (the deflection from `zero_counts`), pivot servo present positions (the plant's pivot,
@@ -23,15 +23,16 @@ use rig_dynamixel::servos::Servo;
 use rig_dynamixel::virtual_bus::{VirtualBus, VirtualServo};
 use rig_runtime::now_ns;
 
-use crate::backend::{BackendError, SimBackend};
-use crate::hardware::{HardwareError, ServoMap};
+use crate::board::BoardError;
+use crate::hardware::{BoardPlan, PortOverrides, ServoMap};
+use crate::sim_board::SimJoint;
 
 /// How often the plant thread updates the virtual hardware.
 const STEP: Duration = Duration::from_micros(250);
 
 /// One simulated joint behind its virtual hardware.
 struct Joint {
-    sim: SimBackend,
+    sim: SimJoint,
     main: Servo,
     pivot: Servo,
     channel: usize,
@@ -68,17 +69,24 @@ impl VirtualBoard {
         js: &[usize],
         start_ns: u64,
         seed: u64,
-    ) -> Result<Self, BackendError> {
+    ) -> Result<Self, BoardError> {
+        // The servos, channels and maps of the board the agent will open: the same checks,
+        // the ports are ours (made below).
+        let placeholder = PortOverrides {
+            bus: Some("virtual-bus".into()),
+            bridge: Some("virtual-bridge".into()),
+        };
+        let plan = BoardPlan::from_config(cfg, js, &placeholder)?;
         let mut joints = Vec::new();
         let mut servos = Vec::new();
-        let mut channels = 0;
-        for &j in js {
-            let c = &cfg.joints[j];
-            let (_, s, map) = crate::hardware::lever_servo(cfg, j)?;
-            let main = Servo::new(s.main_id, &s.main_model).map_err(HardwareError::from)?;
-            let pivot =
-                Servo::new(s.stiffness_id, &s.stiffness_model).map_err(HardwareError::from)?;
-            let sim = SimBackend::new(cfg, j, seed.wrapping_add(j as u64), Default::default())?;
+        for p in &plan.joints {
+            let (main, pivot, map) = (p.main, p.pivot, p.map);
+            let sim = SimJoint::new(
+                cfg,
+                p.index,
+                seed.wrapping_add(p.index as u64),
+                Default::default(),
+            )?;
             let mut vm = VirtualServo::new(*main.model, main.id);
             vm.set(main.model.present_position, counts(main.model, 0.0));
             let mut vp = VirtualServo::new(*pivot.model, pivot.id);
@@ -86,17 +94,22 @@ impl VirtualBoard {
             vp.set(pivot.model.present_position, pivot_counts);
             vp.set(pivot.model.goal_position, pivot_counts);
             servos.extend([vm, vp]);
-            channels = channels.max(usize::from(c.encoder.channel) + 1);
             joints.push(Joint {
                 sim,
                 main,
                 pivot,
-                channel: usize::from(c.encoder.channel),
-                zero_counts: c.encoder.zero_counts as u16,
+                channel: p.channel,
+                zero_counts: p.zero_counts,
                 map,
             });
         }
-        let io = |e: std::io::Error| BackendError::World(format!("virtual board: {e}"));
+        let channels = plan
+            .bridges
+            .iter()
+            .map(|(_, n)| usize::from(*n))
+            .max()
+            .unwrap_or(0);
+        let io = BoardError::VirtualBoard;
         let (bus, bus_path) = VirtualBus::start_with_path(servos).map_err(io)?;
         let (encoders, bridge_path) = VirtualEncoders::start_with_path(vec![
             Counts {
