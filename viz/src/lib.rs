@@ -40,11 +40,15 @@ pub use rerun;
 #[derive(Debug, Error)]
 pub enum VizError {
     #[error("rerun: {0}")]
-    Rerun(String),
+    Rerun(#[from] rerun::RecordingStreamError),
+    #[error("rerun: flushing the recording: {0}")]
+    Flush(#[from] rerun::sink::SinkFlushError),
+    #[error("rerun: the rig's name {name:?} makes no application id: {reason}")]
+    ApplicationId { name: String, reason: String },
     #[error(
         "cannot spawn the Rerun viewer ({0}); install it with `pip install rerun-sdk==0.36.3`, or use --save FILE.rrd"
     )]
-    Spawn(String),
+    Spawn(#[source] rerun::RecordingStreamError),
 }
 
 /// Where the view goes, as Rerun's own tools name it.
@@ -122,9 +126,12 @@ impl std::fmt::Debug for Viz {
 impl Viz {
     /// Opens the sink and sends the blueprint for `cfg`'s rig.
     pub fn open(cfg: &RigConfig, sink: &Sink) -> Result<Self, VizError> {
-        let err = |e: rerun::RecordingStreamError| VizError::Rerun(e.to_string());
-        let app = rerun::ApplicationId::try_from(format!("rig-{}", cfg.name))
-            .map_err(|e| VizError::Rerun(format!("application id: {e}")))?;
+        let app = rerun::ApplicationId::try_from(format!("rig-{}", cfg.name)).map_err(|e| {
+            VizError::ApplicationId {
+                name: cfg.name.clone(),
+                reason: e.to_string(),
+            }
+        })?;
         // Chunks of 200 ms live: the viewer keeps a 100 Hz series in ~20-row chunks instead
         // of one row per chunk (the low-latency default when streaming), several times less
         // memory. A file takes 2 s chunks: an .rrd's footer indexes every chunk, and that
@@ -147,15 +154,13 @@ impl Viz {
                     extra_args: vec!["--bind".into(), "127.0.0.1".into()],
                     ..Default::default()
                 })
-                .map_err(|e| VizError::Spawn(e.to_string()))?,
-            Sink::Connect(url) => builder.connect_grpc_opts(url.clone()).map_err(err)?,
-            Sink::Save(path) => builder.save(path).map_err(err)?,
+                .map_err(VizError::Spawn)?,
+            Sink::Connect(url) => builder.connect_grpc_opts(url.clone())?,
+            Sink::Save(path) => builder.save(path)?,
         };
-        blueprint(cfg)
-            .send(&rec, rerun::blueprint::BlueprintActivation::default())
-            .map_err(err)?;
+        blueprint(cfg).send(&rec, rerun::blueprint::BlueprintActivation::default())?;
         let scene = scene::Scene::new(cfg);
-        scene.log_static(&rec).map_err(err)?;
+        scene.log_static(&rec)?;
         Ok(Self { rec, scene })
     }
 
@@ -184,9 +189,7 @@ impl Viz {
 
     /// Flushes what is buffered to the sink.
     pub fn finish(self) -> Result<VizStats, VizError> {
-        self.rec
-            .flush_blocking()
-            .map_err(|e| VizError::Rerun(e.to_string()))?;
+        self.rec.flush_blocking()?;
         Ok(self.scene.stats)
     }
 }

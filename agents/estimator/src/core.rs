@@ -28,8 +28,13 @@ use thiserror::Error;
 /// Errors building the core.
 #[derive(Debug, Error)]
 pub enum CoreError {
+    /// The config asks for something the estimator does not do (the text says what).
     #[error("estimator: {0}")]
     Setup(String),
+    #[error("estimator: the robot's force estimator: {0}")]
+    Robot(#[from] rig_model::estimator::EstimateError),
+    #[error("estimator: the impedance observer: {0}")]
+    Observer(#[from] rig_model::observer::ObserverError),
 }
 
 /// What the core wants published.
@@ -148,10 +153,7 @@ impl EstimatorCore {
                     .iter()
                     .map(|j| lever_model(&j.kind))
                     .collect::<Result<Vec<_>, _>>()?;
-                PerJoint::Robot(Box::new(
-                    RobotEstimator::new(robot, models)
-                        .map_err(|e| CoreError::Setup(e.to_string()))?,
-                ))
+                PerJoint::Robot(Box::new(RobotEstimator::new(robot, models)?))
             }
             Topology::Single | Topology::Bench => {
                 let ts = timing.period_ns as f64 * 1e-9;
@@ -171,10 +173,12 @@ impl EstimatorCore {
                                 b1: dynamics.b1,
                                 d1: dynamics.d1,
                             });
-                            JointModel::Awas(Box::new(
-                                DecoupledObserver::new(o.ekf(ts), o.alpha, o.k0, motor)
-                                    .map_err(|e| CoreError::Setup(e.to_string()))?,
-                            ))
+                            JointModel::Awas(Box::new(DecoupledObserver::new(
+                                o.ekf(ts),
+                                o.alpha,
+                                o.k0,
+                                motor,
+                            )?))
                         }
                     })
                 };

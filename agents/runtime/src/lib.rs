@@ -20,23 +20,27 @@ pub use cli::{NetArgs, RunFor, tokio_runtime};
 /// Errors of the Zenoh edge.
 #[derive(Debug, Error)]
 pub enum RuntimeError {
-    #[error("zenoh configuration: {0}")]
-    Config(String),
+    #[error("zenoh configuration, {key}: {source}")]
+    Config {
+        key: String,
+        #[source]
+        source: zenoh::Error,
+    },
     #[error("zenoh session: {0}")]
-    Session(String),
+    Session(#[source] zenoh::Error),
     #[error("invalid endpoint {endpoint:?}: {why}")]
     Endpoint { endpoint: String, why: String },
     /// A Zenoh operation (declare, put, reply, close) failed.
     #[error("zenoh: {0}")]
-    Zenoh(String),
+    Zenoh(#[source] zenoh::Error),
     /// A key expression could not be built from the config's names.
     #[error("{0}")]
     Key(#[from] rig_protocol::KeyError),
 }
 
 /// Wraps any Zenoh error, for `.map_err(zenoh_err)?` at the edges.
-pub fn zenoh_err<E: std::fmt::Display>(e: E) -> RuntimeError {
-    RuntimeError::Zenoh(e.to_string())
+pub fn zenoh_err<E: Into<zenoh::Error>>(e: E) -> RuntimeError {
+    RuntimeError::Zenoh(e.into())
 }
 
 /// Endpoint overrides from the command line.
@@ -86,7 +90,10 @@ pub fn zenoh_config(z: &ZenohConfig, net: &NetOverrides) -> Result<zenoh::Config
     // Values as JSON from serde_json: an endpoint's characters are escaped, never spliced.
     let set = |c: &mut zenoh::Config, k: &str, v: serde_json::Value| {
         c.insert_json5(k, &v.to_string())
-            .map_err(|e| RuntimeError::Config(format!("{k}: {e}")))
+            .map_err(|source| RuntimeError::Config {
+                key: k.to_string(),
+                source,
+            })
     };
     set(&mut c, "mode", json!(mode))?;
     set(&mut c, "listen/endpoints", json!(listen))?;
@@ -118,9 +125,7 @@ pub async fn publisher(
 /// Opens a session.
 pub async fn open(z: &ZenohConfig, net: &NetOverrides) -> Result<zenoh::Session, RuntimeError> {
     let config = zenoh_config(z, net)?;
-    zenoh::open(config)
-        .await
-        .map_err(|e| RuntimeError::Session(e.to_string()))
+    zenoh::open(config).await.map_err(RuntimeError::Session)
 }
 
 /// Waits until a liveliness token is up under each of `wanted` (full keys, e.g. from
