@@ -6,17 +6,17 @@
 #![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)]
 
 mod common;
-use common::{Proc, alive, bin, config, free_port, rt, s, serial, spawn, wait_alive};
+use common::{Proc, alive, alive_in, bin, config, free_port, rt, s, serial, spawn, wait_alive};
 
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 use std::process::Command;
 use std::time::{Duration, Instant};
 
-use rig_joint::backend::{WORLD_STROKE_M, WORLD_STROKE_S};
 use rig_protocol::*;
 use rig_runtime::now_ns;
 use rig_sim::world::StrokeWorld;
+use rig_sim::world::{HAND_STROKE_M, HAND_STROKE_S};
 
 fn joint(name: &str, hub: &str, start_ns: u64) -> Proc {
     joint_linked(name, &[hub], start_ns)
@@ -107,8 +107,8 @@ fn a_pushed_end_effector_force_is_estimated_within_the_simulators_accuracy() {
         let world = StrokeWorld::new(
             cfg.robot().unwrap(),
             cfg.geometry.unwrap().home,
-            WORLD_STROKE_M,
-            WORLD_STROKE_S,
+            HAND_STROKE_M,
+            HAND_STROKE_S,
         )
         .unwrap();
         let (mut sq, mut n, mut peak) = (0.0, 0usize, 0.0_f64);
@@ -728,7 +728,10 @@ fn a_recording_of_the_bench_is_identified_and_its_undeclared_offset_named() {
             "12",
         ]),
     );
-    wait_alive(&hub, &[format!("rig/bench/alive/recorder/{}", rec.0.id())]);
+    wait_alive(
+        &hub,
+        &[alive_in("bench", "recorder", &rec.0.id().to_string())],
+    );
     let o = Command::new(bin("rig"))
         .arg("up")
         .arg("--config")

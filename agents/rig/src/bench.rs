@@ -17,17 +17,17 @@ use std::sync::atomic::{AtomicU64, Ordering};
 use std::time::{Duration, Instant};
 
 use rig_config::{RigConfig, Topology};
-use rig_estimator::edge::{EstimatorOptions, EstimatorReport, run as run_estimator};
+use rig_estimator::edge::EstimatorReport;
 use rig_estimator::histogram::LatencySummary;
-use rig_joint::agent::{AgentOptions, AgentReport, run as run_joint};
+use rig_joint::agent::{AgentReport, BackendKind};
 use rig_protocol::{JointSample, encode};
 use rig_runtime::cli::positive_seconds;
 use rig_runtime::zenoh::{self, Wait};
-use rig_runtime::{NetOverrides, now_ns, open, tokio_runtime, wait_alive, zenoh_config};
+use rig_runtime::{NetOverrides, now_ns, tokio_runtime, zenoh_config};
 use serde::Serialize;
-use tokio::sync::watch;
 
 use crate::error::CliError;
+use crate::launch::Hub;
 use crate::up::free_loopback_endpoint;
 
 #[derive(Debug, clap::Args)]
@@ -148,14 +148,14 @@ struct ThroughputReport {
     duration_s: f64,
 }
 
-fn zerr<E: std::fmt::Display>(e: E) -> CliError {
-    CliError::Unsupported(format!("zenoh: {e}"))
+fn zerr<E: Into<zenoh::Error>>(e: E) -> CliError {
+    CliError::Network(rig_runtime::zenoh_err(e))
 }
 
 /// Raw round trips between two Zenoh sessions on loopback, blocking API, `pings` timed.
 fn zenoh_rtt(cfg: &RigConfig, pings: usize, payload: Vec<u8>) -> Result<Vec<u64>, CliError> {
     let hub = free_loopback_endpoint()?;
-    let config = |net: NetOverrides| zenoh_config(&cfg.zenoh, &net).map_err(zerr);
+    let config = |net: NetOverrides| zenoh_config(&cfg.zenoh, &net).map_err(CliError::from);
     let a = zenoh::open(config(NetOverrides {
         listen: vec![hub.clone()],
         connect: vec![],
@@ -168,12 +168,9 @@ fn zenoh_rtt(cfg: &RigConfig, pings: usize, payload: Vec<u8>) -> Result<Vec<u64>
     })?)
     .wait()
     .map_err(zerr)?;
-    let keys = rig_protocol::Keys::new(&cfg.name).map_err(zerr)?;
+    let keys = rig_protocol::Keys::new(&cfg.name)?;
     let id = std::process::id().to_string();
-    let (ping_key, pong_key) = (
-        keys.bench(&id, "ping").map_err(zerr)?,
-        keys.bench(&id, "pong").map_err(zerr)?,
-    );
+    let (ping_key, pong_key) = (keys.bench(&id, "ping")?, keys.bench(&id, "pong")?);
     let pong = b
         .declare_publisher(pong_key.clone())
         .congestion_control(zenoh::qos::CongestionControl::Block)
@@ -246,59 +243,26 @@ fn run_rig(
     label: &str,
 ) -> Result<RigRun, CliError> {
     let rt = tokio_runtime(Some(2))?;
-    let err = |e: String| CliError::Unsupported(e);
     rt.block_on(async {
-        let hub = free_loopback_endpoint()?;
-        let (stop_est_tx, stop_est_rx) = watch::channel(false);
-        let stopped = |mut rx: watch::Receiver<bool>| async move {
-            let _ = rx.wait_for(|s| *s).await;
-        };
-        let est = tokio::spawn(run_estimator(
-            EstimatorOptions {
-                cfg: cfg.clone(),
-                net: NetOverrides {
-                    listen: vec![hub.clone()],
-                    connect: vec![],
-                },
-                duration: None,
-            },
-            stopped(stop_est_rx),
-        ));
-        let peer = NetOverrides {
-            listen: vec![],
-            connect: vec![hub.clone()],
-        };
-        // An observer of every estimate, as a viewer or a recorder would be; the joints start
-        // once it sees the estimator's liveliness token.
-        let observer = open(&cfg.zenoh, &peer)
-            .await
-            .map_err(|e| err(e.to_string()))?;
+        let hub = Hub::start(
+            cfg,
+            vec![free_loopback_endpoint()?],
+            vec![],
+            Duration::from_secs(10),
+        )
+        .await?;
+        // An observer of every estimate, as a viewer or a recorder would be, declared before
+        // the joints start.
         let observed = Arc::new(AtomicU64::new(0));
-        let keys = rig_protocol::Keys::new(&cfg.name).map_err(|e| err(e.to_string()))?;
-        let estimator_key = keys
-            .alive("estimator", "0")
-            .map_err(|e| err(e.to_string()))?;
-        if !wait_alive(&observer, &[estimator_key], Duration::from_secs(10))
-            .await
-            .map_err(|e| err(e.to_string()))?
-            .is_empty()
-        {
-            return Err(err(format!(
-                "the estimator did not come up on {hub} within 10 s"
-            )));
-        }
-        let mut estimate_keys = vec![keys.ee_estimate()];
+        let mut estimate_keys = vec![hub.keys.ee_estimate()];
         for j in &cfg.joints {
-            estimate_keys.push(
-                keys.joint_estimate(&j.name)
-                    .map_err(|e| err(e.to_string()))?,
-            );
+            estimate_keys.push(hub.keys.joint_estimate(&j.name)?);
         }
         let mut subs = Vec::new();
         for key in estimate_keys {
             let counter = observed.clone();
             subs.push(
-                observer
+                hub.session
                     .declare_subscriber(key)
                     .callback(move |_| {
                         counter.fetch_add(1, Ordering::Relaxed);
@@ -307,49 +271,27 @@ fn run_rig(
                     .map_err(zerr)?,
             );
         }
-        let start_ns = now_ns();
-        let mut handles = Vec::new();
-        for joints in boards {
-            handles.push(tokio::spawn(run_joint(
-                AgentOptions {
-                    cfg: cfg.clone(),
-                    joints,
-                    net: peer.clone(),
-                    start_ns,
-                    seed: 1,
-                    duration: Some(duration),
-                    effects: Default::default(),
-                    backend: Default::default(),
-                },
-                std::future::pending::<()>(),
-            )));
-        }
+        let rig = hub
+            .start_roles(
+                false,
+                boards,
+                BackendKind::default(),
+                now_ns(),
+                Some(duration),
+            )
+            .await?;
         let pb = crate::progress::bar(duration.as_secs().max(1), label);
         let t0 = Instant::now();
-        while handles.iter().any(|h| !h.is_finished()) {
+        while rig.boards_running() {
             tokio::time::sleep(Duration::from_millis(200)).await;
             pb.set_position(t0.elapsed().as_secs().min(duration.as_secs()));
         }
         pb.finish_and_clear();
-        let mut agents = Vec::new();
-        for h in handles {
-            agents.extend(
-                h.await
-                    .map_err(|e| err(e.to_string()))?
-                    .map_err(|e| err(e.to_string()))?,
-            );
-        }
-        // Let the last samples arrive before the estimator stops.
-        tokio::time::sleep(Duration::from_millis(500)).await;
-        let _ = stop_est_tx.send(true);
-        let estimator = est
-            .await
-            .map_err(|e| err(e.to_string()))?
-            .map_err(|e| err(e.to_string()))?;
-        let _ = observer.close().await;
+        // The last samples arrive before the estimator stops.
+        let reports = rig.stop(Duration::from_millis(500)).await?;
         Ok(RigRun {
-            agents,
-            estimator,
+            agents: reports.joints.into_iter().map(|(_, r)| r).collect(),
+            estimator: reports.estimator,
             observed: observed.load(Ordering::Relaxed),
         })
     })
@@ -372,8 +314,7 @@ fn latency(a: &LatencyArgs) -> Result<(), CliError> {
         torque_nm: None,
         motor_torque_nm: None,
         stiffness_motor_rad: None,
-    })
-    .map_err(|e| CliError::Unsupported(e.to_string()))?;
+    })?;
     eprintln!(
         "rig bench latency: {} raw Zenoh round trips, then the rig ({} joints × {} Hz) for {:.0} s",
         a.pings,

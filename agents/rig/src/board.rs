@@ -7,8 +7,8 @@ use std::time::Instant;
 
 use rig_config::RigConfig;
 use rig_dynamixel::timing::wire_s;
-use rig_joint::backend::joint_index;
-use rig_joint::hardware::{DynamixelBoard, PortOverrides};
+use rig_joint::board::{JointBoard, SafeState, joint_index};
+use rig_joint::hardware::{BoardPlan, DynamixelBoard, PortOverrides};
 use rig_joint::virtual_board::VirtualBoard;
 use rig_runtime::now_ns;
 use serde_json::json;
@@ -19,10 +19,7 @@ fn joints(cfg: &RigConfig, names: &[String]) -> Result<Vec<usize>, CliError> {
     if names.is_empty() {
         return Ok((0..cfg.joints.len()).collect());
     }
-    names
-        .iter()
-        .map(|n| joint_index(cfg, n).map_err(|e| CliError::Unsupported(e.to_string())))
-        .collect()
+    names.iter().map(|n| Ok(joint_index(cfg, n)?)).collect()
 }
 
 /// Arguments of `rig virtual-board` (its help is on the subcommand in main.rs).
@@ -50,8 +47,7 @@ pub struct VirtualArgs {
 pub fn virtual_board(a: &VirtualArgs) -> Result<(), CliError> {
     let cfg = crate::config::load_or_parallel(&a.config)?;
     let js = joints(&cfg, &a.joint)?;
-    let board = VirtualBoard::start(&cfg, &js, a.start_ns.unwrap_or_else(now_ns), a.seed)
-        .map_err(|e| CliError::Unsupported(e.to_string()))?;
+    let board = VirtualBoard::start(&cfg, &js, a.start_ns.unwrap_or_else(now_ns), a.seed)?;
     if a.json {
         println!(
             "{}",
@@ -111,11 +107,9 @@ pub struct BusArgs {
 pub fn bench_bus(a: &BusArgs) -> Result<(), CliError> {
     let cfg = crate::config::load_or_parallel(&a.config)?;
     let js = joints(&cfg, &a.joint)?;
-    let fail = |e: rig_joint::hardware::HardwareError| CliError::Unsupported(e.to_string());
     let (virt, ports) = match (&a.bus, &a.bridge) {
         (None, None) => {
-            let v = VirtualBoard::start(&cfg, &js, now_ns(), 1)
-                .map_err(|e| CliError::Unsupported(e.to_string()))?;
+            let v = VirtualBoard::start(&cfg, &js, now_ns(), 1)?;
             let ports = PortOverrides {
                 bus: Some(v.bus_path.clone()),
                 bridge: Some(v.bridge_path.clone()),
@@ -130,17 +124,17 @@ pub fn bench_bus(a: &BusArgs) -> Result<(), CliError> {
             },
         ),
     };
-    let mut board = DynamixelBoard::open(&cfg, &js, &ports).map_err(fail)?;
+    let mut board = DynamixelBoard::open(&BoardPlan::from_config(&cfg, &js, &ports)?)?;
     let period = 1.0 / cfg.rate_hz;
     for _ in 0..100 {
-        board.read(period).map_err(fail)?;
+        board.read_cycle(period)?;
     }
     let pb = crate::progress::bar(u64::from(a.cycles), "bus cycles");
     let mut us = Vec::with_capacity(a.cycles as usize);
     let t0 = Instant::now();
     for _ in 0..a.cycles {
         let t = Instant::now();
-        board.read(period).map_err(fail)?;
+        board.read_cycle(period)?;
         us.push(t.elapsed().as_secs_f64() * 1e6);
         pb.inc(1);
     }
@@ -148,7 +142,7 @@ pub fn bench_bus(a: &BusArgs) -> Result<(), CliError> {
     pb.finish_and_clear();
     let stats = board.bus_stats();
     let loads = board.wire_per_cycle();
-    let failed = board.safe_state();
+    let safe = board.safe_state();
     drop(board);
     let kind = if virt.is_some() {
         "virtual"
@@ -156,14 +150,13 @@ pub fn bench_bus(a: &BusArgs) -> Result<(), CliError> {
         "hardware"
     };
     drop(virt);
-    if !failed.is_empty() {
-        return Err(CliError::Unsupported(format!(
+    if let SafeState::TorqueOffFailed(failed) = safe {
+        return Err(CliError::Rig(format!(
             "torque off failed: {}",
             failed.join("; ")
         )));
     }
-    us.sort_by(f64::total_cmp);
-    let at = |q: f64| us[((us.len().max(1) - 1) as f64 * q).round() as usize];
+    let cycle = rig_estimator::histogram::LatencySummary::of(us.iter().map(|&u| u.round() as u64));
     // The wire: each line's bytes at its configured baud (the virtual lines have no baud of
     // their own).
     let wire: Vec<_> = loads
@@ -194,7 +187,7 @@ pub fn bench_bus(a: &BusArgs) -> Result<(), CliError> {
         "board": kind,
         "joints": js.len(),
         "cycles": us.len(),
-        "cycle_us": {"mean": total / us.len().max(1) as f64 * 1e6, "p50": at(0.5), "p99": at(0.99), "max": at(1.0)},
+        "cycle_us": {"mean": total / us.len().max(1) as f64 * 1e6, "p50": cycle.p50, "p99": cycle.p99, "max": cycle.max},
         "bus": {"transfers": stats.transfers, "retries": stats.retries, "failures": stats.failures},
         "wire": wire,
         "wire_us": wire_us,
@@ -212,9 +205,9 @@ pub fn bench_bus(a: &BusArgs) -> Result<(), CliError> {
         js.len(),
         us.len(),
         total / us.len().max(1) as f64 * 1e6,
-        at(0.5),
-        at(0.99),
-        at(1.0)
+        cycle.p50,
+        cycle.p99,
+        cycle.max
     );
     println!(
         "bus: {} transfers, {} retries, {} failures",

@@ -36,12 +36,10 @@ async fn ctrl_c() {
 
 pub fn estimator(a: &HostArgs) -> Result<(), CliError> {
     let (cfg, net, duration) = parts(a)?;
-    let r = runtime()?
-        .block_on(rig_estimator::edge::run(
-            rig_estimator::edge::EstimatorOptions { cfg, net, duration },
-            ctrl_c(),
-        ))
-        .map_err(|e| CliError::Unsupported(e.to_string()))?;
+    let r = runtime()?.block_on(rig_estimator::edge::run(
+        rig_estimator::edge::EstimatorOptions { cfg, net, duration },
+        ctrl_c(),
+    ))?;
     let c = r.core;
     eprintln!(
         "rig estimator: {} samples, {} joint estimates, {} end-effector estimates ({} withheld), {} malformed",
@@ -52,12 +50,10 @@ pub fn estimator(a: &HostArgs) -> Result<(), CliError> {
 
 pub fn allocator(a: &HostArgs) -> Result<(), CliError> {
     let (cfg, net, duration) = parts(a)?;
-    let r = runtime()?
-        .block_on(rig_allocator::edge::run(
-            rig_allocator::edge::AllocatorOptions { cfg, net, duration },
-            ctrl_c(),
-        ))
-        .map_err(|e| CliError::Unsupported(e.to_string()))?;
+    let r = runtime()?.block_on(rig_allocator::edge::run(
+        rig_allocator::edge::AllocatorOptions { cfg, net, duration },
+        ctrl_c(),
+    ))?;
     eprintln!(
         "rig allocator: {} requests, {} goals, {} commands, {} malformed",
         r.requests, r.goals, r.commands, r.malformed

@@ -159,8 +159,7 @@ pub fn run(a: &Args) -> Result<(), CliError> {
     let res = identify(&fit_runs, holdout, &opts, &mut |done, total| {
         pb.set_length(total as u64);
         pb.set_position(done as u64);
-    })
-    .map_err(|e| CliError::Invalid(e.to_string()))?;
+    })?;
     pb.finish_and_clear();
 
     let notes = notes(&res, &fit_runs, &held_runs);

@@ -150,13 +150,17 @@ pub fn read(
 fn read_csv(path: &Path, map: &ColumnMap) -> Result<(Run, Sampling), CliError> {
     let name = path.display().to_string();
     let bad = |m: String| CliError::Invalid(format!("{name}: {m}"));
+    let csv_err = |source| CliError::Csv {
+        file: name.clone(),
+        source,
+    };
     let mut rdr = csv::ReaderBuilder::new()
         .flexible(true)
         .from_path(path)
-        .map_err(|e| bad(e.to_string()))?;
+        .map_err(csv_err)?;
     let headers: Vec<String> = rdr
         .headers()
-        .map_err(|e| bad(e.to_string()))?
+        .map_err(csv_err)?
         .iter()
         .map(|h| h.trim().to_string())
         .collect();
@@ -188,7 +192,7 @@ fn read_csv(path: &Path, map: &ColumnMap) -> Result<(Run, Sampling), CliError> {
     let (mut rows, mut back) = (0usize, 0usize);
     let mut last_t = f64::NEG_INFINITY;
     for rec in rdr.records() {
-        let rec = rec.map_err(|e| bad(e.to_string()))?;
+        let rec = rec.map_err(csv_err)?;
         rows += 1;
         let mut vals = Vec::with_capacity(idx.len());
         let mut ok = true;

@@ -33,6 +33,7 @@ mod hosts;
 mod identify;
 mod identify_data;
 mod identify_plots;
+mod launch;
 mod progress;
 mod record;
 mod reproduce;

@@ -14,7 +14,7 @@ use std::time::Duration;
 
 use rig_estimator::core::{CoreTiming, EstimatorCore, Output};
 use rig_protocol::{EeEstimate, JointEstimate, JointSample, Keys, Kind, decode};
-use rig_runtime::{NetArgs, RunFor, now_ns, open, tokio_runtime};
+use rig_runtime::{NetArgs, RunFor, now_ns, open, tokio_runtime, zenoh_err};
 
 use crate::error::CliError;
 
@@ -31,10 +31,6 @@ fn schema_of(kind: u8) -> (String, String) {
         ),
         Err(_) => ("rig.Unknown".into(), "not a rig message".into()),
     }
-}
-
-fn mcap_err(e: mcap::McapError) -> CliError {
-    CliError::Io(std::io::Error::other(e))
 }
 
 #[derive(Debug, clap::Args)]
@@ -57,10 +53,9 @@ pub fn record(a: &RecordArgs) -> Result<(), CliError> {
     let cfg = crate::config::load_or_parallel(&a.config)?;
     let rt = tokio_runtime(Some(2))?;
     rt.block_on(async {
-        let keys = Keys::new(&cfg.name).map_err(|e| CliError::Invalid(e.to_string()))?;
+        let keys = Keys::new(&cfg.name)?;
         let session = open(&cfg.zenoh, &a.net.overrides())
-            .await
-            .map_err(|e| CliError::Unsupported(e.to_string()))?;
+            .await?;
         // A callback into an unbounded channel: the session's receive path never waits on the
         // disk, so nothing is dropped upstream while a write is slow.
         let (tx, mut rx) = tokio::sync::mpsc::unbounded_channel();
@@ -70,22 +65,21 @@ pub fn record(a: &RecordArgs) -> Result<(), CliError> {
                 let _ = tx.send(s);
             })
             .await
-            .map_err(|e| CliError::Unsupported(e.to_string()))?;
+            .map_err(zenoh_err)?;
         // Up once subscribed, as every role: `rig/<rig>/alive/recorder/<pid>`.
         let _token = session
             .liveliness()
             .declare_token(
-                keys.alive("recorder", &std::process::id().to_string())
-                    .map_err(|e| CliError::Invalid(e.to_string()))?,
+                keys.alive("recorder", &std::process::id().to_string())?,
             )
             .await
-            .map_err(|e| CliError::Unsupported(e.to_string()))?;
+            .map_err(zenoh_err)?;
         let file = std::fs::File::create(&a.out)?;
         let mut w = mcap::WriteOptions::new()
             .use_chunks(false)
             .profile("rig")
             .create(BufWriter::new(file))
-            .map_err(mcap_err)?;
+            ?;
         let mut schemas: BTreeMap<u8, u16> = BTreeMap::new();
         let mut channels: BTreeMap<String, u16> = BTreeMap::new();
         let mut seq = 0u32;
@@ -99,7 +93,7 @@ pub fn record(a: &RecordArgs) -> Result<(), CliError> {
             tokio::select! {
                 _ = &mut ctrl_c => break,
                 _ = tokio::time::sleep_until(deadline.unwrap_or(far)) => break,
-                _ = flush.tick() => w.flush().map_err(mcap_err)?,
+                _ = flush.tick() => w.flush()?,
                 s = rx.recv() => {
                     let Some(s) = s else { break };
                     let bytes = s.payload().to_bytes();
@@ -109,7 +103,7 @@ pub fn record(a: &RecordArgs) -> Result<(), CliError> {
                         Some(&id) => id,
                         None => {
                             let (name, data) = schema_of(kind);
-                            let id = w.add_schema(&name, ENCODING, data.as_bytes()).map_err(mcap_err)?;
+                            let id = w.add_schema(&name, ENCODING, data.as_bytes())?;
                             schemas.insert(kind, id);
                             id
                         }
@@ -117,7 +111,7 @@ pub fn record(a: &RecordArgs) -> Result<(), CliError> {
                     let channel = match channels.get(&key) {
                         Some(&id) => id,
                         None => {
-                            let id = w.add_channel(schema, &key, ENCODING, &BTreeMap::new()).map_err(mcap_err)?;
+                            let id = w.add_channel(schema, &key, ENCODING, &BTreeMap::new())?;
                             channels.insert(key, id);
                             id
                         }
@@ -126,11 +120,11 @@ pub fn record(a: &RecordArgs) -> Result<(), CliError> {
                     let publish_time = s.timestamp().map_or(log_time, |t| t.get_time().to_system_time().duration_since(std::time::UNIX_EPOCH).map_or(log_time, |d| d.as_nanos() as u64));
                     seq = seq.wrapping_add(1);
                     w.write_to_known_channel(&mcap::records::MessageHeader { channel_id: channel, sequence: seq, log_time, publish_time }, &bytes)
-                        .map_err(mcap_err)?;
+                        ?;
                 }
             }
         }
-        w.finish().map_err(mcap_err)?;
+        w.finish()?;
         let _ = session.close().await;
         eprintln!("rig record: {seq} messages on {} keys written to {}", channels.len(), a.out.display());
         Ok(())
@@ -230,9 +224,7 @@ pub fn replay(a: &ReplayArgs) -> Result<(), CliError> {
     }
     let rt = tokio_runtime(Some(2))?;
     rt.block_on(async {
-        let session = open(&cfg.zenoh, &a.net.overrides())
-            .await
-            .map_err(|e| CliError::Unsupported(e.to_string()))?;
+        let session = open(&cfg.zenoh, &a.net.overrides()).await?;
         tokio::time::sleep(Duration::from_millis(500)).await;
         let t0 = msgs.first().map_or(0, |m| m.log_time);
         let start = tokio::time::Instant::now();
@@ -246,7 +238,7 @@ pub fn replay(a: &ReplayArgs) -> Result<(), CliError> {
             session
                 .put(m.topic.as_str(), m.data.clone())
                 .await
-                .map_err(|e| CliError::Unsupported(e.to_string()))?;
+                .map_err(zenoh_err)?;
         }
         let _ = session.close().await;
         eprintln!("rig replay: {} messages republished", msgs.len());
@@ -259,11 +251,8 @@ fn estimate_offline(
     msgs: &[Recorded],
     a: &ReplayArgs,
 ) -> Result<(), CliError> {
-    let mut core = EstimatorCore::new(cfg, CoreTiming::for_rate(cfg.rate_hz))
-        .map_err(|e| CliError::Unsupported(e.to_string()))?;
-    let ee_key = Keys::new(&cfg.name)
-        .map_err(|e| CliError::Invalid(e.to_string()))?
-        .ee_estimate();
+    let mut core = EstimatorCore::new(cfg, CoreTiming::for_rate(cfg.rate_hz))?;
+    let ee_key = Keys::new(&cfg.name)?.ee_estimate();
     let mut live: BTreeMap<u64, (f64, f64)> = BTreeMap::new();
     let mut offline: BTreeMap<u64, (f64, f64)> = BTreeMap::new();
     let collect = |outs: Vec<Output>, offline: &mut BTreeMap<u64, (f64, f64)>| {

@@ -48,7 +48,6 @@ fn json<T: serde::Serialize>(v: &T) -> Result<(), CliError> {
 
 pub fn run(args: &Args) -> Result<(), CliError> {
     let (pb, mut stage) = progress::stages();
-    let err = |e: rig_sim::reproduce::ReproduceError| CliError::Unsupported(e.to_string());
     match args.paper {
         Paper::PaperA => {
             let o = PaperAOptions {
@@ -60,7 +59,7 @@ pub fn run(args: &Args) -> Result<(), CliError> {
                 }
             };
             let cfg = rig_config::examples::load("awas")?;
-            let r = paper_a::run(&cfg, &o, &mut stage).map_err(err)?;
+            let r = paper_a::run(&cfg, &o, &mut stage)?;
             pb.finish_and_clear();
             if args.json { json(&r) } else { print_a(&r, &o) }
         }
@@ -91,7 +90,7 @@ pub fn run(args: &Args) -> Result<(), CliError> {
             }
             let serial = rig_config::examples::load("serial")?;
             let parallel = rig_config::examples::load("parallel")?;
-            let r = paper_b::run(&serial, &parallel, &o, &mut stage).map_err(err)?;
+            let r = paper_b::run(&serial, &parallel, &o, &mut stage)?;
             pb.finish_and_clear();
             if args.json { json(&r) } else { print_b(&r, &o) }
         }

@@ -31,8 +31,7 @@ pub struct Args {
 }
 
 pub fn run(a: &Args) -> Result<(), CliError> {
-    let found = rig_dynamixel::scan::scan(&a.port, a.baud, a.protocol)
-        .map_err(|e| CliError::Unsupported(e.to_string()))?;
+    let found = rig_dynamixel::scan::scan(&a.port, a.baud, a.protocol)?;
     if a.json {
         let v: Vec<_> = found
             .iter()

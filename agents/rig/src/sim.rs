@@ -18,7 +18,7 @@ pub struct Args {
 }
 
 pub fn run(args: &Args) -> Result<(), CliError> {
-    let s = Scenario::load(&args.scenario).map_err(|e| CliError::Invalid(e.to_string()))?;
+    let s = Scenario::load(&args.scenario)?;
     match args.out.extension().and_then(|e| e.to_str()) {
         Some("csv") => {}
         _ => {
@@ -46,8 +46,7 @@ pub fn run(args: &Args) -> Result<(), CliError> {
                 .map_err(|e| e.to_string())
         },
         &mut |done| pb.set_position(done),
-    )
-    .map_err(|e| CliError::Invalid(e.to_string()))?;
+    )?;
     w.borrow_mut().flush()?;
     pb.finish_and_clear();
     eprintln!("wrote {rows} samples to {}", args.out.display());

@@ -10,21 +10,19 @@ use std::collections::BTreeMap;
 use std::path::PathBuf;
 use std::time::Duration;
 
-use rig_allocator::edge::{AllocatorOptions, run as run_allocator};
 use rig_config::RigConfig;
-use rig_estimator::edge::{EstimatorOptions, run as run_estimator};
-use rig_joint::agent::{AgentOptions, run as run_joint};
-use rig_joint::backend::{WORLD_STROKE_M, WORLD_STROKE_S};
+use rig_joint::agent::BackendKind;
 use rig_protocol::{
-    AllocationRequest, AllocationTarget, EeEstimate, JointSample, Keys, SimTruth, decode, encode,
+    AllocationRequest, AllocationTarget, EeEstimate, JointSample, SimTruth, decode, encode,
 };
-use rig_runtime::{NetArgs, NetOverrides, RunFor, now_ns, open, tokio_runtime, wait_alive};
+use rig_runtime::{NetArgs, RunFor, now_ns, tokio_runtime, zenoh_err};
 
 use crate::viz::no_viewer_in_connect;
-use rig_sim::world::StrokeWorld;
+use rig_sim::world::{HAND_STROKE_M, HAND_STROKE_S, StrokeWorld};
 use tokio::sync::watch;
 
 use crate::error::CliError;
+use crate::launch::Hub;
 
 #[derive(Debug, clap::Args)]
 pub struct Args {
@@ -107,7 +105,7 @@ const MATCH_WINDOW_NS: u64 = 2_000_000_000;
 impl Watch {
     fn new(cfg: &RigConfig, start_ns: u64) -> Self {
         let world = cfg.robot().zip(cfg.geometry).and_then(|(robot, g)| {
-            StrokeWorld::new(robot, g.home, WORLD_STROKE_M, WORLD_STROKE_S).ok()
+            StrokeWorld::new(robot, g.home, HAND_STROKE_M, HAND_STROKE_S).ok()
         });
         Self {
             samples: BTreeMap::new(),
@@ -208,7 +206,6 @@ async fn up(cfg: RigConfig, args: &Args) -> Result<(), CliError> {
             .map_err(|e| CliError::Invalid(format!("--sim-effects {e}")))?,
         None => rig_sim::effects::Effects::default(),
     };
-    let zenoh_connect = args.net.connect.clone();
     let viz = match args.viz.sink(&cfg, false)? {
         Some(sink) => Some(crate::viz::VizThread::start(&cfg, &sink)?),
         None => None,
@@ -221,47 +218,12 @@ async fn up(cfg: RigConfig, args: &Args) -> Result<(), CliError> {
     listen.extend(args.net.listen.iter().skip(1).cloned());
     let start_ns = now_ns();
     let duration = args.run_for.duration;
-    let (stop_tx, stop_rx) = watch::channel(false);
     let stopped = |mut rx: watch::Receiver<bool>| async move {
         let _ = rx.wait_for(|s| *s).await;
     };
-    let peer = NetOverrides {
-        listen: vec![],
-        connect: std::iter::once(hub.clone())
-            .chain(zenoh_connect.iter().cloned())
-            .collect(),
-    };
-    let err = |e: String| CliError::Unsupported(e);
-
     // The estimator is the hub: it listens; everyone else connects to it.
-    let est = tokio::spawn(run_estimator(
-        EstimatorOptions {
-            cfg: cfg.clone(),
-            net: NetOverrides {
-                listen,
-                connect: zenoh_connect.clone(),
-            },
-            duration: None,
-        },
-        stopped(stop_rx.clone()),
-    ));
-    // The summary's own session: it watches samples, truths and end-effector estimates, and
-    // waits for each role's liveliness token before starting what depends on it.
-    let keys = Keys::new(&cfg.name).map_err(|e| err(e.to_string()))?;
-    let session = open(&cfg.zenoh, &peer)
-        .await
-        .map_err(|e| err(e.to_string()))?;
-    let alive = |role: &str, id: &str| keys.alive(role, id).map_err(|e| err(e.to_string()));
-    if !wait_alive(&session, &[alive("estimator", "0")?], UP_WITHIN)
-        .await
-        .map_err(|e| err(e.to_string()))?
-        .is_empty()
-    {
-        return Err(err(format!(
-            "the estimator did not come up on {hub} within {} s",
-            UP_WITHIN.as_secs()
-        )));
-    }
+    let hub_up = Hub::start(&cfg, listen, args.net.connect.clone(), UP_WITHIN).await?;
+    let peer = hub_up.peer.clone();
     // The view joins before the joints, so it sees the first sample.
     // It stops last, to show the joints' last statuses.
     let (viz_stop_tx, viz_stop_rx) = watch::channel(false);
@@ -270,45 +232,21 @@ async fn up(cfg: RigConfig, args: &Args) -> Result<(), CliError> {
         let stop = stopped(viz_stop_rx);
         tokio::spawn(async move { crate::viz::observe_with(&cfg, &net, v_tx, stop).await })
     });
-    let alloc = tokio::spawn(run_allocator(
-        AllocatorOptions {
-            cfg: cfg.clone(),
-            net: peer.clone(),
-            duration: None,
-        },
-        stopped(stop_rx.clone()),
-    ));
-    let mut joints = Vec::new();
-    for j in &cfg.joints {
-        let o = AgentOptions {
-            cfg: cfg.clone(),
-            joints: vec![j.name.clone()],
-            net: peer.clone(),
-            start_ns,
-            seed: args.seed,
-            duration: None,
-            effects,
-            backend: Default::default(),
-        };
-        joints.push((
-            j.name.clone(),
-            tokio::spawn(run_joint(o, stopped(stop_rx.clone()))),
-        ));
-    }
-
+    // The summary watches samples, truths and end-effector estimates from the first one.
+    let (session, keys) = (hub_up.session.clone(), hub_up.keys.clone());
     let subs = (
         session
             .declare_subscriber(keys.all_joint_samples())
             .await
-            .map_err(|e| err(e.to_string()))?,
+            .map_err(zenoh_err)?,
         session
             .declare_subscriber(keys.all_sim_truths())
             .await
-            .map_err(|e| err(e.to_string()))?,
+            .map_err(zenoh_err)?,
         session
             .declare_subscriber(keys.ee_estimate())
             .await
-            .map_err(|e| err(e.to_string()))?,
+            .map_err(zenoh_err)?,
     );
     eprintln!(
         "rig up: rig \"{}\" ({}, {} joints) on {hub}; {}",
@@ -320,13 +258,15 @@ async fn up(cfg: RigConfig, args: &Args) -> Result<(), CliError> {
             d.as_secs_f64()
         ))
     );
-    let mut roles = vec![alive("allocator", "0")?];
-    for j in &cfg.joints {
-        roles.push(alive("joint", &j.name)?);
-    }
-    let missing = wait_alive(&session, &roles, UP_WITHIN)
-        .await
-        .map_err(|e| err(e.to_string()))?;
+    let boards = cfg.joints.iter().map(|j| vec![j.name.clone()]).collect();
+    let backend = BackendKind::Sim {
+        seed: args.seed,
+        effects,
+    };
+    let launched = hub_up
+        .start_roles(true, boards, backend, start_ns, None)
+        .await?;
+    let missing = &launched.missing;
     if !missing.is_empty() {
         eprintln!(
             "rig up: not up after {} s: {}",
@@ -347,7 +287,7 @@ async fn up(cfg: RigConfig, args: &Args) -> Result<(), CliError> {
             session
                 .put(keys.stiffness_goal(), bytes)
                 .await
-                .map_err(|e| err(e.to_string()))?;
+                .map_err(zenoh_err)?;
         }
     }
 
@@ -372,29 +312,13 @@ async fn up(cfg: RigConfig, args: &Args) -> Result<(), CliError> {
             },
         }
     }
-    let _ = stop_tx.send(true);
-    let mut joint_reports = Vec::new();
-    for (name, h) in joints {
-        let reports = h
-            .await
-            .map_err(|e| err(e.to_string()))?
-            .map_err(|e| err(e.to_string()))?;
-        joint_reports.extend(reports.into_iter().map(|r| (name.clone(), r)));
-    }
-    let est_report = est
-        .await
-        .map_err(|e| err(e.to_string()))?
-        .map_err(|e| err(e.to_string()))?;
-    let alloc_report = alloc
-        .await
-        .map_err(|e| err(e.to_string()))?
-        .map_err(|e| err(e.to_string()))?;
-    let _ = session.close().await;
-    tokio::time::sleep(Duration::from_millis(200)).await;
+    let reports = launched.stop(Duration::from_millis(200)).await?;
+    let (joint_reports, est_report) = (reports.joints, reports.estimator);
+    let alloc_report = reports.allocator.unwrap_or_default();
     let _ = viz_stop_tx.send(true);
     let viz_stats = match (observer, viz) {
         (Some(o), Some(v)) => {
-            o.await.map_err(|e| err(e.to_string()))??;
+            o.await??;
             Some(v.finish()?)
         }
         _ => None,

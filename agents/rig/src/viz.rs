@@ -74,7 +74,7 @@ pub struct VizThread {
 impl VizThread {
     pub fn start(cfg: &RigConfig, sink: &Sink) -> Result<Self, CliError> {
         eprintln!("rig viz: {}", sink.describe());
-        let mut viz = Viz::open(cfg, sink).map_err(|e| CliError::Unsupported(e.to_string()))?;
+        let mut viz = Viz::open(cfg, sink)?;
         let (tx, rx) = mpsc::channel::<(String, Vec<u8>)>();
         let thread = std::thread::Builder::new()
             .name("rig-viz".into())
@@ -96,8 +96,8 @@ impl VizThread {
         drop(self.tx);
         self.thread
             .join()
-            .map_err(|_| CliError::Unsupported("the viz thread panicked".into()))?
-            .map_err(|e| CliError::Unsupported(e.to_string()))
+            .map_err(|_| CliError::Rig("the viz thread panicked".into()))?
+            .map_err(CliError::from)
     }
 }
 
@@ -118,9 +118,8 @@ pub async fn observe_with(
     tx: mpsc::Sender<(String, Vec<u8>)>,
     stop: impl std::future::Future<Output = ()>,
 ) -> Result<(), CliError> {
-    let err = |e: rig_runtime::RuntimeError| CliError::Unsupported(e.to_string());
-    let keys = rig_protocol::Keys::new(&cfg.name).map_err(|e| CliError::Invalid(e.to_string()))?;
-    let session = open(&cfg.zenoh, net).await.map_err(err)?;
+    let keys = rig_protocol::Keys::new(&cfg.name)?;
+    let session = open(&cfg.zenoh, net).await?;
     let sub = session
         .declare_subscriber(keys.all())
         .callback(move |s| {
@@ -130,7 +129,7 @@ pub async fn observe_with(
             ));
         })
         .await
-        .map_err(|e| err(zenoh_err(e)))?;
+        .map_err(zenoh_err)?;
     stop.await;
     let _ = sub.undeclare().await;
     let _ = session.close().await;

@@ -90,7 +90,14 @@ pub async fn session(listen: &[&str], connect: &[&str]) -> rig_runtime::zenoh::S
 
 /// The liveliness key of a role of the example rig (`rig/parallel/alive/<role>/<id>`).
 pub fn alive(role: &str, id: &str) -> String {
-    format!("rig/parallel/alive/{role}/{id}")
+    alive_in("parallel", role, id)
+}
+
+/// The liveliness key of a role of rig `rig` (`rig/<rig>/alive/<role>/<id>`), from `Keys`.
+pub fn alive_in(rig: &str, role: &str, id: &str) -> String {
+    rig_protocol::Keys::new(rig)
+        .and_then(|k| k.alive(role, id))
+        .unwrap()
 }
 
 /// Waits, on a session of its own connected to `hub`, until each role's liveliness token is up
