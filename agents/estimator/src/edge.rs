@@ -218,18 +218,8 @@ pub async fn run(
         .await
         .map_err(z)?;
 
-    let mut ticker = tokio::time::interval(Duration::from_millis(20));
-    ticker.set_missed_tick_behavior(tokio::time::MissedTickBehavior::Skip);
-    let deadline = opts.duration.map(|d| tokio::time::Instant::now() + d);
-    tokio::pin!(shutdown);
-    loop {
-        tokio::select! {
-            _ = &mut shutdown => break,
-            _ = ticker.tick() => {}
-        }
-        if deadline.is_some_and(|d| tokio::time::Instant::now() >= d) {
-            break;
-        }
+    let mut ticks = rig_runtime::Ticks::new(Duration::from_millis(20), opts.duration, shutdown);
+    while ticks.next().await {
         let outputs = lock(&state).core.on_tick(now_ns());
         let (failed, _) = pubs.publish(outputs);
         lock(&state).report.publish_errors += failed;

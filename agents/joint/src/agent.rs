@@ -412,20 +412,11 @@ async fn sample_loop(
     // before the first sample: in peer-to-peer mode a sample reaches only peers already linked.
     tokio::time::sleep(SETTLE).await;
     let period_ns = (1e9 / opts.cfg.rate_hz).round() as u64;
-    let mut ticker = tokio::time::interval(Duration::from_nanos(period_ns));
-    ticker.set_missed_tick_behavior(tokio::time::MissedTickBehavior::Skip);
-    let deadline = opts.duration.map(|d| tokio::time::Instant::now() + d);
+    let mut ticks =
+        rig_runtime::Ticks::new(Duration::from_nanos(period_ns), opts.duration, shutdown);
     let mut last_tick: Option<u64> = None;
     let hardware = !board.reads_the_past();
-    tokio::pin!(shutdown);
-    loop {
-        tokio::select! {
-            _ = &mut shutdown => break,
-            _ = ticker.tick() => {}
-        }
-        if deadline.is_some_and(|d| tokio::time::Instant::now() >= d) {
-            break;
-        }
+    while ticks.next().await {
         let now = now_ns();
         let tick = now / period_ns;
         // Every grid tick since the last wake-up is sampled (the timer wakes at ~1 ms

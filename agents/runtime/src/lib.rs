@@ -50,6 +50,53 @@ pub struct NetOverrides {
     pub connect: Vec<String>,
 }
 
+/// A role's loop clock: a tick every `period` (missed ticks skipped, not bunched) until the
+/// shutdown future resolves or the run's duration has passed.
+pub struct Ticks<F> {
+    ticker: tokio::time::Interval,
+    deadline: Option<tokio::time::Instant>,
+    shutdown: std::pin::Pin<Box<F>>,
+}
+
+impl<F> std::fmt::Debug for Ticks<F> {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("Ticks")
+            .field("period", &self.ticker.period())
+            .field("deadline", &self.deadline)
+            .finish_non_exhaustive()
+    }
+}
+
+impl<F: std::future::Future<Output = ()>> Ticks<F> {
+    /// Ticks every `period` for `duration` (None: until `shutdown`). Call from a runtime.
+    pub fn new(
+        period: std::time::Duration,
+        duration: Option<std::time::Duration>,
+        shutdown: F,
+    ) -> Self {
+        let mut ticker = tokio::time::interval(period);
+        ticker.set_missed_tick_behavior(tokio::time::MissedTickBehavior::Skip);
+        Self {
+            ticker,
+            deadline: duration.map(|d| tokio::time::Instant::now() + d),
+            shutdown: Box::pin(shutdown),
+        }
+    }
+
+    /// Waits for the next tick: `true` to go on, `false` once shut down or past the duration
+    /// (then stop calling).
+    pub async fn next(&mut self) -> bool {
+        tokio::select! {
+            // A shutdown wins over a tick that is due at the same time.
+            biased;
+            _ = &mut self.shutdown => return false,
+            _ = self.ticker.tick() => {}
+        }
+        self.deadline
+            .is_none_or(|d| tokio::time::Instant::now() < d)
+    }
+}
+
 /// Nanoseconds since the UNIX epoch (the rig's acquisition clock).
 pub fn now_ns() -> u64 {
     SystemTime::now()
@@ -182,6 +229,30 @@ pub async fn wait_alive(
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn ticks_go_on_until_the_shutdown_or_the_duration_and_a_shutdown_wins_a_tie() {
+        let rt = tokio::runtime::Builder::new_current_thread()
+            .enable_all()
+            .build()
+            .unwrap();
+        rt.block_on(async {
+            let period = std::time::Duration::from_millis(1);
+            let mut free = Ticks::new(period, None, std::future::pending());
+            for _ in 0..3 {
+                assert!(free.next().await);
+            }
+            // The first tick is due at once, and so is the shutdown: the shutdown wins.
+            let mut stopped = Ticks::new(period, None, async {});
+            assert!(!stopped.next().await);
+            let mut over = Ticks::new(
+                period,
+                Some(std::time::Duration::ZERO),
+                std::future::pending(),
+            );
+            assert!(!over.next().await);
+        });
+    }
 
     #[test]
     fn overrides_win_and_bad_endpoints_are_refused() {
