@@ -72,8 +72,8 @@ async fn session(hub: &str) -> rig_runtime::zenoh::Session {
 
 /// End-effector force estimates [N] by world time [ms], from one rig run: the estimator host
 /// and one board serving j1–j4 with `backend`, the world started at `start`, watched from
-/// 2 s to 10 s. Returns them and the board's exit status after SIGTERM.
-fn ee_forces(board: &[String], start: u64) -> (BTreeMap<i64, (f64, f64)>, Option<i32>) {
+/// 2 s to 10 s. Returns them, the board's exit status after SIGTERM and what it wrote on stderr.
+fn ee_forces(board: &[String], start: u64) -> (BTreeMap<i64, (f64, f64)>, Option<i32>, String) {
     let hub = format!("tcp/127.0.0.1:{}", free_port());
     let cfg = config().to_string_lossy().into_owned();
     rt().block_on(async {
@@ -93,7 +93,9 @@ fn ee_forces(board: &[String], start: u64) -> (BTreeMap<i64, (f64, f64)>, Option
             &hub,
         ]);
         args.extend(board.iter().cloned());
-        let mut agent = spawn("rig-joint", &args);
+        let log =
+            std::env::temp_dir().join(format!("rig-joint-{}-{start}.log", std::process::id()));
+        let mut agent = common::spawn_logged("rig-joint", &args, &log);
         let forces = Arc::new(Mutex::new(BTreeMap::new()));
         let f = forces.clone();
         let _ees = z
@@ -124,7 +126,9 @@ fn ee_forces(board: &[String], start: u64) -> (BTreeMap<i64, (f64, f64)>, Option
             tokio::time::sleep(Duration::from_millis(20)).await;
         };
         let out = forces.lock().unwrap().clone();
-        (out, code)
+        let stderr = std::fs::read_to_string(&log).unwrap_or_default();
+        let _ = std::fs::remove_file(&log);
+        (out, code, stderr)
     })
 }
 
@@ -135,7 +139,7 @@ fn rig_joint_on_virtual_servos_gives_the_sim_backends_force_estimate() {
     // The hardware path: virtual servos and encoder bridge fed by the simulated plant.
     let start = now_ns() + 1_000_000_000;
     let vb = VirtualBoard::start(&cfg, &[0, 1, 2, 3], start, 1).unwrap();
-    let (hw, code) = ee_forces(
+    let (hw, code, stderr) = ee_forces(
         &[
             "--backend".into(),
             "dynamixel".into(),
@@ -146,7 +150,11 @@ fn rig_joint_on_virtual_servos_gives_the_sim_backends_force_estimate() {
         ],
         start,
     );
-    assert_eq!(code, Some(0), "SIGTERM ends the agent cleanly");
+    assert_eq!(
+        code,
+        Some(0),
+        "SIGTERM ends the agent cleanly; its stderr:\n{stderr}"
+    );
     // Torque was on while it ran and is off after it: every servo of the board.
     for id in [1u8, 2, 3, 4, 11, 12, 13, 14] {
         let t = vb.bus.lock();
@@ -161,8 +169,8 @@ fn rig_joint_on_virtual_servos_gives_the_sim_backends_force_estimate() {
     drop(vb);
     // The same world with the sim backend.
     let start = now_ns() + 1_000_000_000;
-    let (sim, code) = ee_forces(&["--start-ns".into(), start.to_string()], start);
-    assert_eq!(code, Some(0));
+    let (sim, code, stderr) = ee_forces(&["--start-ns".into(), start.to_string()], start);
+    assert_eq!(code, Some(0), "{stderr}");
     let (mut sq, mut peak, mut n) = (0.0, 0.0_f64, 0usize);
     for (ms, (fx, fy)) in &hw {
         if let Some((gx, gy)) = sim.get(ms) {

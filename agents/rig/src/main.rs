@@ -27,6 +27,7 @@
 mod allocate;
 mod bench;
 mod board;
+mod calibrate;
 mod config;
 mod error;
 mod hosts;
@@ -94,6 +95,10 @@ enum Command {
     /// Close the loop with measured data: fit a declared model, trace its residual to the
     /// effects it lacks, add those that pay off, report the held-out error before and after.
     Identify(identify::Args),
+    /// Fit a lever joint's restoring-torque table (paper B eq. 7 at each pivot position the
+    /// data holds) from bench data with a torque reference; score it against the config's on
+    /// held-out data; write it into the config with --write (comments kept) or --out.
+    Calibrate(calibrate::Args),
     /// List the Dynamixel servos on a serial bus: ID, model number, model.
     Scan(scan::Args),
     /// Stand in for a joint board's hardware: virtual servos and encoder bridge on
@@ -130,6 +135,7 @@ fn main() -> ExitCode {
         Command::Sim(a) => sim::run(&a),
         Command::Reproduce(a) => reproduce::run(&a),
         Command::Identify(a) => identify::run(&a),
+        Command::Calibrate(a) => calibrate::run(&a),
         Command::Scan(a) => scan::run(&a),
         Command::VirtualBoard(a) => board::virtual_board(&a),
         Command::Bench(a) => bench::run(&a),

@@ -48,6 +48,18 @@ pub fn spawn(name: &str, args: &[String]) -> Proc {
     )
 }
 
+/// [`spawn`] with the process's stderr kept in `log` (read it into a failure's message).
+pub fn spawn_logged(name: &str, args: &[String], log: &std::path::Path) -> Proc {
+    Proc(
+        Command::new(bin(name))
+            .args(args)
+            .stdout(Stdio::null())
+            .stderr(std::fs::File::create(log).unwrap())
+            .spawn()
+            .unwrap(),
+    )
+}
+
 pub fn s(v: &[&str]) -> Vec<String> {
     v.iter().map(|x| x.to_string()).collect()
 }
