@@ -100,6 +100,11 @@ impl Keys {
         format!("{}/joint/*/sample", self.prefix)
     }
 
+    /// Every joint's estimate: `rig/<rig>/estimate/joint/*`.
+    pub fn all_joint_estimates(&self) -> String {
+        format!("{}/estimate/joint/*", self.prefix)
+    }
+
     /// Every simulated joint's truth: `rig/<rig>/sim/joint/*/truth`.
     pub fn all_sim_truths(&self) -> String {
         format!("{}/sim/joint/*/truth", self.prefix)

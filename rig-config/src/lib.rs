@@ -208,6 +208,20 @@ pub struct ZenohConfig {
     pub connect: Vec<String>,
 }
 
+/// How far apart the rig's clocks may be (`[clock]`).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct ClockConfig {
+    /// A sample stamped further than this from the receiving host's clock is refused [s].
+    pub max_offset_s: f64,
+}
+
+impl Default for ClockConfig {
+    /// 100 ms: far above a sample's transit on a lab network, far below a wrong clock's hours.
+    fn default() -> Self {
+        Self { max_offset_s: 0.1 }
+    }
+}
+
 /// The whole validated rig.
 #[derive(Debug, Clone)]
 pub struct RigConfig {
@@ -221,6 +235,7 @@ pub struct RigConfig {
     pub joints: Vec<JointConfig>,
     pub observer: ObserverConfig,
     pub zenoh: ZenohConfig,
+    pub clock: ClockConfig,
 }
 
 impl RigConfig {

@@ -12,6 +12,13 @@ pub struct RawConfig {
     pub joint: Vec<RawJoint>,
     pub observer: Option<RawObserver>,
     pub zenoh: Option<RawZenoh>,
+    pub clock: Option<RawClock>,
+}
+
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct RawClock {
+    pub max_offset_ms: Option<f64>,
 }
 
 #[derive(Debug, Deserialize)]

@@ -264,3 +264,28 @@ fn hardware_fields_are_read_in_lab_units_and_checked() {
     assert_eq!(e[0].field, "joint[0].encoder.zero_counts");
     assert!(e[0].message.contains("14-bit"), "{}", e[0].message);
 }
+
+#[test]
+fn the_clock_bound_defaults_to_100_ms_and_a_bad_one_is_named_with_its_line() {
+    let (p, src) = example("bench.toml");
+    assert_eq!(parse(&p, &src).unwrap().clock.max_offset_s, 0.1);
+    let set = |ms: &str| {
+        src.replacen(
+            "[rig]\n",
+            &format!("[clock]\nmax_offset_ms = {ms}\n\n[rig]\n"),
+            1,
+        )
+    };
+    assert_eq!(parse(&p, &set("250")).unwrap().clock.max_offset_s, 0.25);
+    let bad = set("-5");
+    let e = parse(&p, &bad).expect_err("a negative bound is refused").0;
+    assert_eq!(e.len(), 1, "{e:?}");
+    assert_eq!(e[0].field, "clock.max_offset_ms");
+    let line = bad
+        .lines()
+        .position(|l| l.starts_with("max_offset_ms"))
+        .unwrap()
+        + 1;
+    assert_eq!(e[0].line, Some(line));
+    assert!(e[0].message.contains("(0, 60000]"), "{}", e[0].message);
+}

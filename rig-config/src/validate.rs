@@ -186,6 +186,7 @@ fn build(c: &mut Collector<'_>, raw: &RawConfig) -> Option<RigConfig> {
 
     let observer = observer(c, raw.observer.as_ref());
     let zenoh = zenoh(c, raw.zenoh.as_ref());
+    let clock = clock(c, raw.clock.as_ref());
     Some(RigConfig {
         source: Default::default(),
         name: raw.rig.name.clone(),
@@ -195,6 +196,7 @@ fn build(c: &mut Collector<'_>, raw: &RawConfig) -> Option<RigConfig> {
         joints,
         observer: observer?,
         zenoh: zenoh?,
+        clock: clock?,
     })
 }
 
@@ -333,6 +335,7 @@ fn geometry(c: &mut Collector<'_>, t: Topology, raw: Option<&RawGeometry>) -> Op
             listen: vec![],
             connect: vec![],
         },
+        clock: ClockConfig::default(),
     };
     match cfg.robot().map(|r| r.at_position(home.0, home.1)) {
         Some(Ok(_)) => Some(geo),
@@ -889,6 +892,26 @@ fn observer(c: &mut Collector<'_>, raw: Option<&RawObserver>) -> Option<Observer
         q_diag: [q[0], q[1], q[2], q[3]],
         r_diag: [r[0], r[1]],
         p0_diag: [p0[0], p0[1], p0[2], p0[3]],
+    })
+}
+
+/// `[clock]`: the bound on a sample's stamp against the receiving host's clock.
+fn clock(c: &mut Collector<'_>, raw: Option<&RawClock>) -> Option<ClockConfig> {
+    let Some(ms) = raw.and_then(|r| r.max_offset_ms) else {
+        return Some(ClockConfig::default());
+    };
+    let p = FieldPath::default().key("clock").key("max_offset_ms");
+    if !(ms.is_finite() && ms > 0.0 && ms <= 60_000.0) {
+        c.push(
+            &p,
+            format!(
+                "{ms} is not a bound: give milliseconds in (0, 60000], e.g. 100 (a sample's transit is ≤ 1 ms on a lab network)"
+            ),
+        );
+        return None;
+    }
+    Some(ClockConfig {
+        max_offset_s: ms * 1e-3,
     })
 }
 

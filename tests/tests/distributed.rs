@@ -681,6 +681,19 @@ fn a_bench_joints_torque_offset_is_diagnosed_live_and_shown_in_rerun() {
         .output()
         .unwrap();
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    // The summary's live residual RMS: the 0.05 N·m offset over 3 mN·m of sensor noise (the
+    // config's table was fitted on this simulated spring, so the model adds little).
+    let summary = String::from_utf8_lossy(&o.stdout);
+    let residual: f64 = summary
+        .lines()
+        .find(|l| l.starts_with("j1 "))
+        .and_then(|l| l.split_whitespace().last())
+        .and_then(|v| v.parse().ok())
+        .unwrap_or_else(|| panic!("no residual RMS for j1 in:\n{summary}"));
+    assert!(
+        (0.045..=0.06).contains(&residual),
+        "residual RMS {residual} N·m for a 0.05 N·m offset"
+    );
     let rows = rrd_rows(&rrd);
     let n = |e: &str, a: &str| {
         rows.get(&(e.to_string(), a.to_string()))

@@ -59,6 +59,14 @@ pub struct CoreStats {
     /// on the same tick whatever the arrival order (what makes offline replays exact).
     pub startup_skipped: u64,
     pub errors: u64,
+    /// Samples refused: stamped further from this host's clock than the bound.
+    pub refused_clock: u64,
+    /// Samples refused: a sequence number and a stamp that do not advance (a replay).
+    pub refused_replay: u64,
+    /// Samples refused: a pivot outside the joint's travel.
+    pub refused_range: u64,
+    /// Samples refused: the payload's joint is not the one of the key it came on.
+    pub refused_key: u64,
 }
 
 enum PerJoint {
@@ -85,17 +93,41 @@ pub struct CoreTiming {
     pub stale_after_ns: u64,
     /// Ticks to wait for a missing joint before processing without it.
     pub max_lag: u64,
+    /// A sample stamped further than this from the host's clock is refused [ns].
+    pub max_clock_offset_ns: u64,
 }
 
+/// The default bound on a sample's stamp against the host's clock [ns]: far above a sample's
+/// transit (≤ 1 ms on a lab network), far below the hour a wrong clock or a forger can give.
+pub const MAX_CLOCK_OFFSET_NS: u64 = 100_000_000;
+
 impl CoreTiming {
-    /// 1/rate periods, stale after 200 ms, wait up to 20 ticks.
+    /// 1/rate periods, stale after 200 ms, wait up to 20 ticks, stamps within 100 ms.
     pub fn for_rate(rate_hz: f64) -> Self {
         Self {
             period_ns: (1e9 / rate_hz).round() as u64,
             stale_after_ns: 200_000_000,
             max_lag: 20,
+            max_clock_offset_ns: MAX_CLOCK_OFFSET_NS,
         }
     }
+
+    /// [`Self::for_rate`] at the config's rate, with its `[clock] max_offset_ms`.
+    pub fn for_config(cfg: &RigConfig) -> Self {
+        Self {
+            max_clock_offset_ns: (cfg.clock.max_offset_s * 1e9).round() as u64,
+            ..Self::for_rate(cfg.rate_hz)
+        }
+    }
+}
+
+/// Why a joint's samples are being refused (one status when it starts, one when it ends).
+#[derive(Debug, Clone, Copy, PartialEq)]
+enum Refusal {
+    /// Stamped this far from the host's clock [ns] (positive: ahead).
+    Clock(i128),
+    /// The pivot this far outside the travel [m].
+    Range(f64),
 }
 
 /// The estimator host's core.
@@ -114,8 +146,17 @@ pub struct EstimatorCore {
     ee_seq: u64,
     /// Residual monitors, one per joint, made at the joint's first torque-sensor reading.
     monitors: Vec<Option<ResidualMonitor>>,
+    /// Per joint: the last accepted (seq, stamp), what its samples are refused for now, and
+    /// its pivot travel with a 1 mm margin (lever joints).
+    last_accepted: Vec<Option<(u64, u64)>>,
+    refusing: Vec<Option<Refusal>>,
+    pivot_range: Vec<Option<(f64, f64)>>,
     pub stats: CoreStats,
 }
+
+/// How far a reported pivot may lie outside the configured travel before it is refused [m]
+/// (an encoder count or a servo's overshoot is far less).
+const PIVOT_MARGIN_M: f64 = 1e-3;
 
 impl std::fmt::Debug for EstimatorCore {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
@@ -204,6 +245,18 @@ impl EstimatorCore {
             status_seq: 0,
             ee_seq: 0,
             monitors: vec![None; n],
+            last_accepted: vec![None; n],
+            refusing: vec![None; n],
+            pivot_range: cfg
+                .joints
+                .iter()
+                .map(|j| match &j.kind {
+                    JointKind::Lever { vsa, .. } => {
+                        Some((vsa.d_min - PIVOT_MARGIN_M, vsa.d_max + PIVOT_MARGIN_M))
+                    }
+                    JointKind::Awas { .. } => None,
+                })
+                .collect(),
             stats: CoreStats::default(),
         })
     }
@@ -229,7 +282,49 @@ impl EstimatorCore {
         })
     }
 
-    /// Feeds one (validated) sample that arrived at local time `now_ns`.
+    /// Feeds one sample that arrived on joint `key_joint`'s key: refused and counted when the
+    /// payload names another joint (a forged or misrouted sample), else [`Self::on_sample`].
+    pub fn on_sample_from(&mut self, key_joint: &str, s: JointSample, now_ns: u64) -> Vec<Output> {
+        if self.names.get(s.joint as usize).map(String::as_str) != Some(key_joint) {
+            self.stats.refused_key += 1;
+            return Vec::new();
+        }
+        self.on_sample(s, now_ns)
+    }
+
+    /// Why sample `s` of joint `j` cannot be believed, if it cannot: a stamp beyond the
+    /// clock bound, a pivot outside the travel. (A replay is refused apart: it says nothing
+    /// about the joint's state.)
+    fn refusal(&self, j: usize, s: &JointSample, now_ns: u64) -> Option<Refusal> {
+        let offset = i128::from(s.t_acq_ns) - i128::from(now_ns);
+        if offset.unsigned_abs() > u128::from(self.timing.max_clock_offset_ns) {
+            return Some(Refusal::Clock(offset));
+        }
+        if let (Some((lo, hi)), Some(d)) = (self.pivot_range[j], s.pivot_m)
+            && !(lo..=hi).contains(&d)
+        {
+            return Some(Refusal::Range(if d < lo { d - lo } else { d - hi }));
+        }
+        None
+    }
+
+    /// Why joint samples are refused, in words.
+    fn refusal_reason(&self, r: Refusal) -> String {
+        match r {
+            Refusal::Clock(off) => format!(
+                "stamped {:+.1} ms from this host's clock, bound ±{:.0} ms; check the board's clock (chrony, PTP)",
+                off as f64 * 1e-6,
+                self.timing.max_clock_offset_ns as f64 * 1e-6
+            ),
+            Refusal::Range(by) => format!("the pivot {:+.1} mm outside its travel", by * 1e3),
+        }
+    }
+
+    /// Feeds one (validated) sample that arrived at local time `now_ns`. Refused and counted
+    /// (never fed to a model): a stamp further than the clock bound from `now_ns`, a pivot
+    /// outside the travel, a sequence number and stamp that do not advance. A joint whose
+    /// samples start or stop being refused gets a status; one whose samples are all refused
+    /// goes stale, the status naming why.
     pub fn on_sample(&mut self, s: JointSample, now_ns: u64) -> Vec<Output> {
         let mut out = Vec::new();
         let j = s.joint as usize;
@@ -238,6 +333,39 @@ impl EstimatorCore {
             return out;
         }
         self.started_ns.get_or_insert(now_ns);
+        if let Some(r) = self.refusal(j, &s, now_ns) {
+            match r {
+                Refusal::Clock(_) => self.stats.refused_clock += 1,
+                Refusal::Range(_) => self.stats.refused_range += 1,
+            }
+            let started = self.refusing[j].is_none();
+            self.refusing[j] = Some(r);
+            if started {
+                let text = format!(
+                    "joint {}: samples refused: {}",
+                    self.names[j],
+                    self.refusal_reason(r)
+                );
+                out.push(self.status(j, JointState::Rejected, text, now_ns));
+            }
+            return out;
+        }
+        // A restarted agent counts from 1 again, with a later stamp: only a sample whose
+        // sequence number and stamp both fail to advance is a replay.
+        if self.last_accepted[j].is_some_and(|(seq, t)| s.seq <= seq && s.t_acq_ns <= t) {
+            self.stats.refused_replay += 1;
+            return out;
+        }
+        self.last_accepted[j] = Some((s.seq, s.t_acq_ns));
+        if self.refusing[j].take().is_some() && !self.stale[j] {
+            let name = self.names[j].clone();
+            out.push(self.status(
+                j,
+                JointState::Ok,
+                format!("joint {name}: samples accepted again"),
+                now_ns,
+            ));
+        }
         self.stats.samples += 1;
         self.last_seen_ns[j] = Some(now_ns);
         if self.stale[j] {
@@ -282,10 +410,10 @@ impl EstimatorCore {
                     silent as f64 * 1e-6,
                     self.timing.stale_after_ns as f64 * 1e-6,
                 );
-                let why = if self.last_seen_ns[j].is_some() {
-                    "no sample"
-                } else {
-                    "no sample yet"
+                let why = match (self.refusing[j], self.last_seen_ns[j]) {
+                    (Some(r), _) => format!("every sample refused ({})", self.refusal_reason(r)),
+                    (None, Some(_)) => "no sample".to_string(),
+                    (None, None) => "no sample yet".to_string(),
                 };
                 out.push(self.status(
                     j,
@@ -531,9 +659,14 @@ mod tests {
             out.iter().filter(|o| matches!(o, Output::Joint(_))).count(),
             4
         );
-        // A sample for an already processed tick is late and dropped.
-        core.on_sample(sample(0, 1, 0.0), 12);
+        // A (new) sample for an already processed tick is late and dropped; the same sample
+        // again is a replay.
+        let mut late = sample(0, 1, 0.0);
+        late.seq = 2;
+        core.on_sample(late, 12);
         assert_eq!(core.stats.late_dropped, 1);
+        core.on_sample(late, 13);
+        assert_eq!((core.stats.late_dropped, core.stats.refused_replay), (1, 1));
     }
 
     #[test]
@@ -542,6 +675,7 @@ mod tests {
             period_ns: 1_000_000,
             stale_after_ns: 200_000_000,
             max_lag: 20,
+            max_clock_offset_ns: MAX_CLOCK_OFFSET_NS,
         };
         let mut core = EstimatorCore::new(&cfg(), t).unwrap();
         let ms = 1_000_000u64;
@@ -682,5 +816,117 @@ mod tests {
             text.starts_with("diagnosis:") && text.contains("offset"),
             "{text}"
         );
+    }
+
+    fn statuses(out: &[Output]) -> Vec<JointStatus> {
+        out.iter()
+            .filter_map(|o| match o {
+                Output::Status(s) => Some(s.clone()),
+                _ => None,
+            })
+            .collect()
+    }
+
+    #[test]
+    fn a_sample_stamped_an_hour_ahead_is_refused_once_said_and_estimates_go_on() {
+        let mut core = EstimatorCore::new(&cfg(), CoreTiming::for_rate(1000.0)).unwrap();
+        let ms = 1_000_000u64;
+        let (mut ee_after, mut said) = (0, Vec::new());
+        for tick in 1..=300u64 {
+            let now = tick * ms;
+            for j in 0..4u16 {
+                let mut out = core.on_sample(sample(j, tick, 0.0), now);
+                if j == 1 && tick == 100 {
+                    // A forged (or wrongly clocked) j2 sample, an hour ahead, three times.
+                    for k in 0..3 {
+                        let mut f = sample(1, tick + 1000 + k, 0.0);
+                        f.t_acq_ns = now + 3_600_000_000_000;
+                        out.extend(core.on_sample(f, now));
+                    }
+                }
+                if tick > 100 {
+                    ee_after += ee(&out);
+                }
+                said.extend(statuses(&out));
+            }
+        }
+        assert_eq!(core.stats.refused_clock, 3);
+        // Before the bound, one such sample stopped every later end-effector estimate.
+        assert!(
+            ee_after >= 195,
+            "{ee_after} estimates after the forged stamp"
+        );
+        assert_eq!(said.len(), 2, "{said:?}");
+        assert_eq!(said[0].state, JointState::Rejected);
+        assert!(
+            said[0].text.contains("j2") && said[0].text.contains("+3600000.0 ms"),
+            "{}",
+            said[0].text
+        );
+        assert_eq!(said[1].state, JointState::Ok);
+    }
+
+    #[test]
+    fn a_board_two_seconds_behind_goes_stale_and_the_status_names_its_clock() {
+        let mut core = EstimatorCore::new(&cfg(), CoreTiming::for_rate(1000.0)).unwrap();
+        let ms = 1_000_000u64;
+        let mut said = Vec::new();
+        for tick in 1..=6000u64 {
+            let now = 3_000 * ms + tick * ms;
+            for j in 0..4u16 {
+                let mut s = sample(j, 3_000 + tick, 0.0);
+                if j == 2 {
+                    s.t_acq_ns -= 2_000 * ms;
+                }
+                said.extend(statuses(&core.on_sample(s, now)));
+            }
+            if tick % 20 == 0 {
+                said.extend(statuses(&core.on_tick(now)));
+            }
+        }
+        let stale = said
+            .iter()
+            .find(|s| s.state == JointState::Stale)
+            .expect("j3 goes stale");
+        assert_eq!(stale.joint, 2);
+        assert!(
+            stale
+                .text
+                .contains("every sample refused (stamped -2000.0 ms"),
+            "{}",
+            stale.text
+        );
+        assert!(core.stale()[2] && !core.stale()[0]);
+        assert_eq!(
+            core.stats.ee_estimates, 0,
+            "never an estimate with a joint withheld"
+        );
+    }
+
+    #[test]
+    fn replays_wrong_keys_and_pivots_off_the_travel_are_refused_and_counted() {
+        let mut core = EstimatorCore::new(&cfg(), CoreTiming::for_rate(1000.0)).unwrap();
+        let ms = 1_000_000u64;
+        core.on_sample(sample(0, 10, 0.0), 10 * ms);
+        // The same sample again: refused as a replay.
+        core.on_sample(sample(0, 10, 0.0), 11 * ms);
+        assert_eq!(core.stats.refused_replay, 1);
+        // A restarted agent: seq 1 again, a later stamp: accepted.
+        let mut restarted = sample(0, 12, 0.0);
+        restarted.seq = 1;
+        core.on_sample(restarted, 12 * ms);
+        assert_eq!(core.stats.refused_replay, 1);
+        // j3's payload on j1's key.
+        assert!(
+            core.on_sample_from("j1", sample(2, 13, 0.0), 13 * ms)
+                .is_empty()
+        );
+        assert_eq!(core.stats.refused_key, 1);
+        // A pivot 50 mm out: refused, said once.
+        let mut off = sample(1, 14, 0.0);
+        off.pivot_m = Some(0.05);
+        let said = statuses(&core.on_sample(off, 14 * ms));
+        assert_eq!(core.stats.refused_range, 1);
+        assert!(said[0].text.contains("outside its travel"), "{said:?}");
     }
 }

@@ -128,19 +128,36 @@ fn lock(state: &Mutex<State>) -> MutexGuard<'_, State> {
         .unwrap_or_else(std::sync::PoisonError::into_inner)
 }
 
+/// 1, 10, 100, …: when a count is worth a line.
+fn power_of_ten(mut n: u64) -> bool {
+    while n >= 10 && n.is_multiple_of(10) {
+        n /= 10;
+    }
+    n == 1
+}
+
 /// One sample from Zenoh: decoded, fed to the core, its estimates published.
 fn on_sample(state: &Mutex<State>, pubs: &Publishers, s: &zenoh::sample::Sample) {
     let sample = match decode::<JointSample>(&s.payload().to_bytes()) {
         Ok(sample) => sample,
         Err(e) => {
-            lock(state).report.malformed += 1;
-            eprintln!(
-                "rig estimator: dropped a malformed sample on {}: {e}",
-                s.key_expr()
-            );
+            let n = {
+                let mut st = lock(state);
+                st.report.malformed += 1;
+                st.report.malformed
+            };
+            // Counted, and said at the 1st, 10th, 100th…: a flood cannot fill the log.
+            if power_of_ten(n) {
+                eprintln!(
+                    "rig estimator: dropped a malformed sample on {}: {e} ({n} malformed so far)",
+                    s.key_expr()
+                );
+            }
             return;
         }
     };
+    // `rig/<rig>/joint/<j>/sample`: the payload must be joint <j>'s.
+    let key_joint = s.key_expr().as_str().rsplit('/').nth(1).unwrap_or("");
     let published_ns = s.timestamp().map(|t| t.get_time().as_nanos());
     let now = now_ns();
     let outputs = {
@@ -156,7 +173,7 @@ fn on_sample(state: &Mutex<State>, pubs: &Publishers, s: &zenoh::sample::Sample)
         if let Some(last) = st.last_seq.get_mut(sample.joint as usize) {
             *last = Some(sample.seq);
         }
-        st.core.on_sample(sample, now)
+        st.core.on_sample_from(key_joint, sample, now)
     };
     let (failed, first_out) = pubs.publish(outputs);
     let done = now_ns();
@@ -175,7 +192,7 @@ pub async fn run(
     shutdown: impl std::future::Future<Output = ()>,
 ) -> Result<EstimatorReport, EstimatorError> {
     let cfg = &opts.cfg;
-    let core = EstimatorCore::new(cfg, CoreTiming::for_rate(cfg.rate_hz))?;
+    let core = EstimatorCore::new(cfg, CoreTiming::for_config(cfg))?;
     let keys = Keys::new(&cfg.name)?;
     let session = open(&cfg.zenoh, &opts.net).await?;
     let mut joints = Vec::new();

@@ -42,8 +42,16 @@ pub fn estimator(a: &HostArgs) -> Result<(), CliError> {
     ))?;
     let c = r.core;
     eprintln!(
-        "rig estimator: {} samples, {} joint estimates, {} end-effector estimates ({} withheld), {} malformed",
-        c.samples, c.joint_estimates, c.ee_estimates, c.ee_withheld, r.malformed
+        "rig estimator: {} samples, {} joint estimates, {} end-effector estimates ({} withheld), {} malformed; refused: {} off the clock bound, {} replayed, {} off the pivot travel, {} on another joint's key",
+        c.samples,
+        c.joint_estimates,
+        c.ee_estimates,
+        c.ee_withheld,
+        r.malformed,
+        c.refused_clock,
+        c.refused_replay,
+        c.refused_range,
+        c.refused_key
     );
     Ok(())
 }

@@ -251,7 +251,7 @@ fn estimate_offline(
     msgs: &[Recorded],
     a: &ReplayArgs,
 ) -> Result<(), CliError> {
-    let mut core = EstimatorCore::new(cfg, CoreTiming::for_rate(cfg.rate_hz))?;
+    let mut core = EstimatorCore::new(cfg, CoreTiming::for_config(cfg))?;
     let ee_key = Keys::new(&cfg.name)?.ee_estimate();
     let mut live: BTreeMap<u64, (f64, f64)> = BTreeMap::new();
     let mut offline: BTreeMap<u64, (f64, f64)> = BTreeMap::new();

@@ -13,7 +13,8 @@ use std::time::Duration;
 use rig_config::RigConfig;
 use rig_joint::agent::BackendKind;
 use rig_protocol::{
-    AllocationRequest, AllocationTarget, EeEstimate, JointSample, SimTruth, decode, encode,
+    AllocationRequest, AllocationTarget, EeEstimate, JointEstimate, JointSample, SimTruth, decode,
+    encode,
 };
 use rig_runtime::{NetArgs, RunFor, now_ns, tokio_runtime, zenoh_err};
 
@@ -72,6 +73,8 @@ struct Watch {
     /// Squared error, count and peak truth of the ticks after the warm-up, and of those in it.
     settled: ForceError,
     warm_up: ForceError,
+    /// Per joint: squared residual (measured − modelled torque) and count, after the warm-up.
+    residuals: BTreeMap<u16, (f64, u64)>,
 }
 
 /// The estimated end-effector force against the truth over some ticks.
@@ -116,7 +119,26 @@ impl Watch {
             ee: BTreeMap::new(),
             settled: ForceError::default(),
             warm_up: ForceError::default(),
+            residuals: BTreeMap::new(),
         }
+    }
+
+    /// A joint's live residual [N·m] (where it has a torque reference), after the warm-up.
+    fn residual(&mut self, t_ns: u64, joint: u16, residual: Option<f64>) {
+        let settled = t_ns.saturating_sub(self.start_ns) as f64 * 1e-9 >= WARM_UP_S;
+        if let (true, Some(r)) = (settled, residual) {
+            let e = self.residuals.entry(joint).or_default();
+            e.0 += r * r;
+            e.1 += 1;
+        }
+    }
+
+    /// Joint `j`'s residual RMS [N·m], if it has a torque reference.
+    fn residual_rms(&self, j: u16) -> Option<f64> {
+        self.residuals
+            .get(&j)
+            .filter(|(_, n)| *n > 0)
+            .map(|(sq, n)| (sq / *n as f64).sqrt())
     }
 
     fn truth(&mut self, t_ns: u64, joint: u16, torque: f64) {
@@ -247,6 +269,10 @@ async fn up(cfg: RigConfig, args: &Args) -> Result<(), CliError> {
             .declare_subscriber(keys.ee_estimate())
             .await
             .map_err(zenoh_err)?,
+        session
+            .declare_subscriber(keys.all_joint_estimates())
+            .await
+            .map_err(zenoh_err)?,
     );
     eprintln!(
         "rig up: rig \"{}\" ({}, {} joints) on {hub}; {}",
@@ -310,6 +336,9 @@ async fn up(cfg: RigConfig, args: &Args) -> Result<(), CliError> {
             s = subs.2.recv_async() => if let Ok(s) = s && let Ok(m) = decode::<EeEstimate>(&s.payload().to_bytes()) {
                 w.estimate(m.t_ns, m.force_n);
             },
+            s = subs.3.recv_async() => if let Ok(s) = s && let Ok(m) = decode::<JointEstimate>(&s.payload().to_bytes()) {
+                w.residual(m.t_acq_ns, m.joint, m.residual_nm);
+            },
         }
     }
     let reports = launched.stop(Duration::from_millis(200)).await?;
@@ -332,24 +361,33 @@ async fn up(cfg: RigConfig, args: &Args) -> Result<(), CliError> {
         cfg.rate_hz
     );
     println!(
-        "{:<8} {:>9} {:>9} {:>10} {:>10}",
-        "joint", "samples", "skipped", "commands", "rejected"
+        "{:<8} {:>9} {:>9} {:>10} {:>10} {:>20}",
+        "joint", "samples", "skipped", "commands", "rejected", "residual RMS [N·m]"
     );
     for (name, r) in &joint_reports {
+        // The live residual (measured − modelled torque) after the warm-up, where the joint
+        // has a torque reference.
+        let residual = cfg
+            .joints
+            .iter()
+            .position(|j| &j.name == name)
+            .and_then(|j| w.residual_rms(j as u16))
+            .map_or("—".to_string(), |r| format!("{r:.4}"));
         println!(
-            "{:<8} {:>9} {:>9} {:>10} {:>10}",
-            name, r.samples, r.skipped_ticks, r.commands_accepted, r.commands_rejected
+            "{:<8} {:>9} {:>9} {:>10} {:>10} {:>20}",
+            name, r.samples, r.skipped_ticks, r.commands_accepted, r.commands_rejected, residual
         );
     }
     let c = est_report.core;
     println!(
-        "estimator: {} samples → {} joint estimates, {} end-effector estimates ({} withheld, {} late, {} malformed)",
+        "estimator: {} samples → {} joint estimates, {} end-effector estimates ({} withheld, {} late, {} malformed, {} refused)",
         c.samples,
         c.joint_estimates,
         c.ee_estimates,
         c.ee_withheld,
         c.late_dropped,
-        est_report.malformed
+        est_report.malformed,
+        c.refused_clock + c.refused_replay + c.refused_range + c.refused_key
     );
     println!(
         "sample age at the estimator: median {} µs, p99 {} µs, max {} µs",
