@@ -167,6 +167,18 @@ pub struct JointConfig {
     pub encoder: EncoderConfig,
     pub kind: JointKind,
     pub limits: Limits,
+    /// Effects identified on the joint and applied live by the estimator (`[joint.effects]`).
+    pub effects: JointEffects,
+}
+
+/// What `rig identify --apply` wrote into `[joint.effects]`: the live corrections the
+/// estimator makes to the joint's samples before its model sees them.
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+pub struct JointEffects {
+    /// The torque sensor reads this much high: subtracted from its readings [N·m].
+    pub torque_offset_nm: f64,
+    /// The deflection encoder reads this much high: subtracted from φ [rad].
+    pub encoder_offset_rad: f64,
 }
 
 /// Gains of the impedance observer.

@@ -55,6 +55,15 @@ pub struct RawJoint {
     pub restoring: Option<RawRestoring>,
     pub awas: Option<RawAwas>,
     pub limits: RawLimits,
+    pub effects: Option<RawEffects>,
+}
+
+/// Effects `rig identify --apply` found and the estimator applies live.
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct RawEffects {
+    pub torque_offset_nm: Option<f64>,
+    pub encoder_offset_deg: Option<f64>,
 }
 
 #[derive(Debug, Deserialize)]

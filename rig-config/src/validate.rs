@@ -397,6 +397,7 @@ fn joint(
         }
     };
     let limits = limits(c, &p.key("limits"), &j.limits, &kind, range)?;
+    let effects = effects(c, &p.key("effects"), j.effects.as_ref())?;
     Some(JointConfig {
         name: j.name.clone(),
         index,
@@ -404,6 +405,33 @@ fn joint(
         encoder: encoder?,
         kind,
         limits,
+        effects,
+    })
+}
+
+/// `[joint.effects]`: finite, and within what a sensor's zero can be off by.
+fn effects(c: &mut Collector<'_>, p: &FieldPath, e: Option<&RawEffects>) -> Option<JointEffects> {
+    let Some(e) = e else {
+        return Some(JointEffects::default());
+    };
+    let mut ok = true;
+    let mut bounded =
+        |c: &mut Collector<'_>, field: &'static str, v: Option<f64>, limit: f64, unit: &str| {
+            let v = v.unwrap_or(0.0);
+            if !(v.is_finite() && v.abs() <= limit) {
+                c.push(
+                    &p.key(field),
+                    format!("{v} is not a sensor zero: give a number within ±{limit} {unit}"),
+                );
+                ok = false;
+            }
+            v
+        };
+    let torque = bounded(c, "torque_offset_nm", e.torque_offset_nm, 1e3, "N·m");
+    let encoder = bounded(c, "encoder_offset_deg", e.encoder_offset_deg, 180.0, "deg");
+    ok.then_some(JointEffects {
+        torque_offset_nm: torque,
+        encoder_offset_rad: encoder.to_radians(),
     })
 }
 

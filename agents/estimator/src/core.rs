@@ -151,6 +151,8 @@ pub struct EstimatorCore {
     last_accepted: Vec<Option<(u64, u64)>>,
     refusing: Vec<Option<Refusal>>,
     pivot_range: Vec<Option<(f64, f64)>>,
+    /// Per joint: the config's `[joint.effects]`, applied to each accepted sample.
+    effects: Vec<rig_config::JointEffects>,
     pub stats: CoreStats,
 }
 
@@ -257,6 +259,7 @@ impl EstimatorCore {
                     JointKind::Awas { .. } => None,
                 })
                 .collect(),
+            effects: cfg.joints.iter().map(|j| j.effects).collect(),
             stats: CoreStats::default(),
         })
     }
@@ -357,6 +360,11 @@ impl EstimatorCore {
             return out;
         }
         self.last_accepted[j] = Some((s.seq, s.t_acq_ns));
+        // The identified sensor zeros (`[joint.effects]`), before any model sees the sample.
+        let e = self.effects[j];
+        let mut s = s;
+        s.deflection_rad -= e.encoder_offset_rad;
+        s.torque_nm = s.torque_nm.map(|t| t - e.torque_offset_nm);
         if self.refusing[j].take().is_some() && !self.stale[j] {
             let name = self.names[j].clone();
             out.push(self.status(

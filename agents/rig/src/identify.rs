@@ -6,7 +6,9 @@
 use std::path::{Path, PathBuf};
 
 use clap::ValueEnum;
-use rig_model::identify::{Declared, Effect, Holdout, Identified, Options, Run, Tare, identify};
+use rig_model::identify::{
+    Declared, Effect, Holdout, Identified, Options, Place, Run, Tare, identify,
+};
 use serde_json::{Map, Value, json};
 
 use crate::error::CliError;
@@ -81,9 +83,21 @@ pub struct Args {
     /// Where to write the JSON report (the .md and .png files go beside it)
     #[arg(long, value_name = "OUT.json")]
     report: PathBuf,
+    /// Write what has a live form into CONFIG's `[joint.effects]` for --joint (in place,
+    /// comments kept, validated first): the sensors' zeros — a torque-sensor offset, an
+    /// encoder offset (a zero that jumped: its level after the jump; and the files' rest
+    /// zeros when they were tared). Every other effect found is refused by name: the live
+    /// model has no form of it yet. Needs --model restoring (the config's model) and --joint
+    #[arg(long, value_name = "CONFIG", requires = "joint")]
+    apply: Option<PathBuf>,
 }
 
 pub fn run(a: &Args) -> Result<(), CliError> {
+    if a.apply.is_some() && a.model != ModelArg::Restoring {
+        return Err(CliError::Invalid(
+            "--apply needs --model restoring: the live estimator runs the config's restoring-torque model".into(),
+        ));
+    }
     if !(a.min_gain.is_finite() && (0.0..1.0).contains(&a.min_gain)) {
         return Err(CliError::Invalid(format!(
             "--min-gain must be in [0, 1), got {}",
@@ -186,6 +200,111 @@ pub fn run(a: &Args) -> Result<(), CliError> {
         md.display(),
         fit_png.display(),
         res_png.display()
+    );
+    if let (Some(config), Some(joint)) = (&a.apply, &a.joint) {
+        apply(&res, config, joint)?;
+    }
+    Ok(())
+}
+
+/// What of `res` has a live form: the sensors' constant zeros [N·m, rad], and the effects
+/// refused with why.
+fn live_effects(res: &Identified) -> ((f64, f64), Vec<String>) {
+    let (mut torque, mut encoder) = (0.0, 0.0);
+    // Tared files: their rest zeros were taken off before the fit; live data keeps them.
+    if !res.tare.is_empty() {
+        let n = res.tare.len() as f64;
+        torque += res.tare.iter().map(|t| t.torque_zero).sum::<f64>() / n;
+        encoder += res.tare.iter().map(|t| t.deflection_zero).sum::<f64>() / n;
+    }
+    let mut refused = Vec::new();
+    for f in &res.effects {
+        let p = |name: &str| f.params.iter().find(|(n, _)| *n == name).map(|(_, v)| *v);
+        // A zero that jumped during the run (a slipping mount or encoder, or a first loading
+        // from rest fitted as a step): the level after the jump is the sensor's zero now.
+        if let (Effect::Offset, Some(at)) = (f.effect, p("jump_at_s")) {
+            eprintln!(
+                "rig identify --apply: the {} zero jumped {at:.1} s into the run; its level after the jump is applied",
+                if f.on == Some(Place::Deflection) {
+                    "encoder's"
+                } else {
+                    "torque sensor's"
+                }
+            );
+        }
+        match (f.effect, f.on) {
+            (Effect::Offset, Some(Place::Torque)) => {
+                torque += p("bias_nm").unwrap_or(0.0) + p("jump_nm").unwrap_or(0.0);
+            }
+            (Effect::Offset, Some(Place::Deflection)) => {
+                encoder += p("bias_rad").unwrap_or(0.0) + p("jump_rad").unwrap_or(0.0);
+            }
+            (e, _) => refused.push(format!(
+                "{}: the live model has no form of it yet (the estimator runs the config's restoring table); fit it into the table with `rig calibrate`, or fix it at the joint",
+                e.name()
+            )),
+        }
+    }
+    ((torque, encoder), refused)
+}
+
+/// `--apply`: writes the live effects into `config`'s `[joint.effects]` of `joint`.
+fn apply(res: &Identified, config: &Path, joint: &str) -> Result<(), CliError> {
+    let ((torque, encoder), refused) = live_effects(res);
+    for r in &refused {
+        eprintln!("rig identify --apply: refused {r}");
+    }
+    let text = std::fs::read_to_string(config)?;
+    let mut doc: toml_edit::DocumentMut = text
+        .parse()
+        .map_err(|e| CliError::Invalid(format!("{}: not TOML: {e}", config.display())))?;
+    let t = doc
+        .get_mut("joint")
+        .and_then(toml_edit::Item::as_array_of_tables_mut)
+        .and_then(|js| {
+            js.iter_mut()
+                .find(|t| t.get("name").and_then(|n| n.as_str()) == Some(joint))
+        })
+        .ok_or_else(|| {
+            CliError::Invalid(format!(
+                "{}: no [[joint]] named {joint:?}",
+                config.display()
+            ))
+        })?;
+    let effects = t
+        .entry("effects")
+        .or_insert_with(|| toml_edit::Item::Table(toml_edit::Table::new()))
+        .as_table_mut()
+        .ok_or_else(|| {
+            CliError::Invalid(format!(
+                "{}: joint {joint:?}'s `effects` is not a table",
+                config.display()
+            ))
+        })?;
+    let round = |v: f64, digits: i32| (v * 10f64.powi(digits)).round() / 10f64.powi(digits);
+    effects["torque_offset_nm"] = toml_edit::value(round(torque, 6));
+    effects["encoder_offset_deg"] = toml_edit::value(round(encoder.to_degrees(), 5));
+    effects.decor_mut().set_prefix(format!(
+        "# Identified by `rig identify --apply` (held-out RMSE {:.4} → {:.4} N·m); the estimator\n# subtracts these sensor zeros from the joint's samples.\n",
+        res.before.rmse, res.after.rmse
+    ));
+    let tmp = config.with_extension("toml.apply-tmp");
+    std::fs::write(&tmp, doc.to_string())?;
+    if let Err(e) = rig_config::load(&tmp) {
+        let _ = std::fs::remove_file(&tmp);
+        return Err(e.into());
+    }
+    std::fs::rename(&tmp, config)?;
+    println!(
+        "applied to joint {joint} in {}: torque_offset_nm = {:.6}, encoder_offset_deg = {:.5}{}",
+        config.display(),
+        round(torque, 6),
+        round(encoder.to_degrees(), 5),
+        if refused.is_empty() {
+            String::new()
+        } else {
+            format!("; refused: {}", refused.len())
+        }
     );
     Ok(())
 }
