@@ -289,3 +289,33 @@ fn the_clock_bound_defaults_to_100_ms_and_a_bad_one_is_named_with_its_line() {
     assert_eq!(e[0].line, Some(line));
     assert!(e[0].message.contains("(0, 60000]"), "{}", e[0].message);
 }
+
+#[test]
+fn joint_effects_are_read_in_lab_units_and_a_bad_zero_is_named() {
+    let (p, src) = example("bench.toml");
+    assert_eq!(
+        parse(&p, &src).unwrap().joints[0].effects,
+        JointEffects::default()
+    );
+    let with = |t: &str, e: &str| {
+        src.replacen(
+            "[joint.limits]",
+            &format!(
+                "[joint.effects]\ntorque_offset_nm = {t}\nencoder_offset_deg = {e}\n\n[joint.limits]"
+            ),
+            1,
+        )
+    };
+    let e = parse(&p, &with("0.02", "-0.5")).unwrap().joints[0].effects;
+    assert_eq!(e.torque_offset_nm, 0.02);
+    assert!((e.encoder_offset_rad + 0.5f64.to_radians()).abs() < 1e-15);
+    let errs = parse(&p, &with("nan", "400")).expect_err("refused").0;
+    let fields: Vec<&str> = errs.iter().map(|e| e.field.as_str()).collect();
+    assert_eq!(
+        fields,
+        [
+            "joint[0].effects.torque_offset_nm",
+            "joint[0].effects.encoder_offset_deg"
+        ]
+    );
+}
