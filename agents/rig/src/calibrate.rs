@@ -17,7 +17,7 @@ use rig_model::identify::Run;
 use serde_json::json;
 
 use crate::error::CliError;
-use crate::identify_data::{ColumnMap, read};
+use crate::identify_data::{ColumnMap, DataArgs, read};
 
 /// A fitted point replaces the config's points closer than this [m] (half the examples'
 /// 2.25 mm spacing would merge neighbours; a pivot read back within a count is far closer).
@@ -51,16 +51,8 @@ pub struct Args {
     /// The joint to calibrate (a lever joint of the config)
     #[arg(long, value_name = "NAME")]
     joint: String,
-    /// Bench data to fit: CSV or MCAP. Repeatable
-    #[arg(long, required = true, value_name = "FILE")]
-    data: Vec<PathBuf>,
-    /// Data held out of the fit, on which both tables are scored. Repeatable
-    #[arg(long, value_name = "FILE")]
-    holdout: Vec<PathBuf>,
-    /// Which CSV column is which quantity, with units: QUANTITY=COLUMN[:UNIT],…
-    /// (t, phi, tau, d as for `rig identify`; default columns t, phi, tau, d in s, rad, N·m, mm)
-    #[arg(long, value_name = "MAP", verbatim_doc_comment)]
-    columns: Option<String>,
+    #[command(flatten)]
+    data: DataArgs,
     /// The pivot position of data without a d column [mm]
     #[arg(long, value_name = "MM")]
     pivot_mm: Option<f64>,
@@ -145,15 +137,7 @@ fn rewrite(
     let mut doc: toml_edit::DocumentMut = text
         .parse()
         .map_err(|e| CliError::Invalid(format!("the config does not parse as TOML: {e}")))?;
-    let joints = doc
-        .get_mut("joint")
-        .and_then(toml_edit::Item::as_array_of_tables_mut)
-        .ok_or_else(|| CliError::Invalid("the config has no [[joint]] tables".into()))?;
-    let joint = joints
-        .iter_mut()
-        .find(|t| t.get("name").and_then(|n| n.as_str()) == Some(name))
-        .ok_or_else(|| CliError::Invalid(format!("the config has no [[joint]] named {name:?}")))?;
-    let restoring = joint
+    let restoring = crate::config_edit::joint(&mut doc, name)?
         .get_mut("restoring")
         .and_then(toml_edit::Item::as_table_mut)
         .ok_or_else(|| {
@@ -201,7 +185,7 @@ pub fn run(a: &Args) -> Result<(), CliError> {
         }
         None => None,
     };
-    let map = ColumnMap::parse(a.columns.as_deref())?;
+    let map = ColumnMap::parse(a.data.columns.as_deref())?;
     let load = |files: &[PathBuf]| -> Result<Vec<Vec<FitSample>>, CliError> {
         files
             .iter()
@@ -211,8 +195,8 @@ pub fn run(a: &Args) -> Result<(), CliError> {
             })
             .collect()
     };
-    let fit_runs = load(&a.data)?;
-    let held_runs = load(&a.holdout)?;
+    let fit_runs = load(&a.data.data)?;
+    let held_runs = load(&a.data.holdout)?;
     let all: Vec<FitSample> = fit_runs.iter().flatten().copied().collect();
     let opts = FitOptions {
         dead_band: *dead_band_rad,
@@ -236,6 +220,7 @@ pub fn run(a: &Args) -> Result<(), CliError> {
 
     let files = a
         .data
+        .data
         .iter()
         .map(|p| p.display().to_string())
         .collect::<Vec<_>>()
@@ -258,13 +243,7 @@ pub fn run(a: &Args) -> Result<(), CliError> {
         let text = std::fs::read_to_string(&a.config)?;
         let new = rewrite(&text, &a.joint, &table, &note)?;
         // Validated before it lands: a table the config checker refuses is never written.
-        let tmp = path.with_extension("toml.calibrate-tmp");
-        std::fs::write(&tmp, &new)?;
-        if let Err(e) = rig_config::load(&tmp) {
-            let _ = std::fs::remove_file(&tmp);
-            return Err(e.into());
-        }
-        std::fs::rename(&tmp, path)?;
+        crate::config_edit::write_validated(path, &new)?;
     }
 
     if a.json {

@@ -12,7 +12,7 @@ use rig_model::identify::{
 use serde_json::{Map, Value, json};
 
 use crate::error::CliError;
-use crate::identify_data::{ColumnMap, Sampling, read};
+use crate::identify_data::{ColumnMap, DataArgs, Sampling, read};
 
 #[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
 pub enum ModelArg {
@@ -44,18 +44,8 @@ pub enum ModelArg {
 #[derive(Debug, clap::Args)]
 #[command(verbatim_doc_comment)]
 pub struct Args {
-    /// Measured data to fit: CSV (header row) or an MCAP recording of the rig. Repeatable
-    #[arg(long, required = true, value_name = "FILE")]
-    data: Vec<PathBuf>,
-    /// Data held out of the fit, on which every before/after figure is computed. Repeatable.
-    /// Default: every fourth time block of each --data file
-    #[arg(long, value_name = "FILE")]
-    holdout: Vec<PathBuf>,
-    /// Which CSV column is which quantity, with units: QUANTITY=COLUMN[:UNIT],…
-    /// Quantities: t (s|ms), phi (rad|deg), tau (Nm|Nmm), d (mm|m), q (rad|deg).
-    /// Default: columns named t, phi, tau, d, q in s, rad, N·m, mm, rad
-    #[arg(long, value_name = "MAP", verbatim_doc_comment)]
-    columns: Option<String>,
+    #[command(flatten)]
+    data: DataArgs,
     /// The declared model to start from
     #[arg(long, value_enum, default_value = "restoring")]
     model: ModelArg,
@@ -111,7 +101,7 @@ pub fn run(a: &Args) -> Result<(), CliError> {
             "--rate-window-ms must be > 0, got {w}"
         )));
     }
-    let map = ColumnMap::parse(a.columns.as_deref())?;
+    let map = ColumnMap::parse(a.data.columns.as_deref())?;
     let lever = match &a.config {
         Some(path) => {
             let cfg = rig_config::load(path)?;
@@ -132,8 +122,8 @@ pub fn run(a: &Args) -> Result<(), CliError> {
         }
         Ok((runs, smp))
     };
-    let (fit_runs, mut sampling) = load(&a.data)?;
-    let (held_runs, held_sampling) = load(&a.holdout)?;
+    let (fit_runs, mut sampling) = load(&a.data.data)?;
+    let (held_runs, held_sampling) = load(&a.data.holdout)?;
     sampling.extend(held_sampling);
     for s in &sampling {
         let dropped: usize = s.missing.values().sum::<usize>() + s.time_not_increasing;
@@ -254,23 +244,8 @@ fn apply(res: &Identified, config: &Path, joint: &str) -> Result<(), CliError> {
     for r in &refused {
         eprintln!("rig identify --apply: refused {r}");
     }
-    let text = std::fs::read_to_string(config)?;
-    let mut doc: toml_edit::DocumentMut = text
-        .parse()
-        .map_err(|e| CliError::Invalid(format!("{}: not TOML: {e}", config.display())))?;
-    let t = doc
-        .get_mut("joint")
-        .and_then(toml_edit::Item::as_array_of_tables_mut)
-        .and_then(|js| {
-            js.iter_mut()
-                .find(|t| t.get("name").and_then(|n| n.as_str()) == Some(joint))
-        })
-        .ok_or_else(|| {
-            CliError::Invalid(format!(
-                "{}: no [[joint]] named {joint:?}",
-                config.display()
-            ))
-        })?;
+    let mut doc = crate::config_edit::open(config)?;
+    let t = crate::config_edit::joint(&mut doc, joint)?;
     let effects = t
         .entry("effects")
         .or_insert_with(|| toml_edit::Item::Table(toml_edit::Table::new()))
@@ -288,13 +263,7 @@ fn apply(res: &Identified, config: &Path, joint: &str) -> Result<(), CliError> {
         "# Identified by `rig identify --apply` (held-out RMSE {:.4} → {:.4} N·m); the estimator\n# subtracts these sensor zeros from the joint's samples.\n",
         res.before.rmse, res.after.rmse
     ));
-    let tmp = config.with_extension("toml.apply-tmp");
-    std::fs::write(&tmp, doc.to_string())?;
-    if let Err(e) = rig_config::load(&tmp) {
-        let _ = std::fs::remove_file(&tmp);
-        return Err(e.into());
-    }
-    std::fs::rename(&tmp, config)?;
+    crate::config_edit::write_validated(config, &doc.to_string())?;
     println!(
         "applied to joint {joint} in {}: torque_offset_nm = {:.6}, encoder_offset_deg = {:.5}{}",
         config.display(),
@@ -441,7 +410,7 @@ fn report_json(
     let holdout = if blocks {
         json!({"fraction": num(res.holdout_samples as f64 / (res.holdout_samples + res.fit_samples) as f64), "scheme": "every fourth of 12 time blocks per file"})
     } else {
-        json!({"files": a.holdout.iter().map(|p| p.display().to_string()).collect::<Vec<_>>()})
+        json!({"files": a.data.holdout.iter().map(|p| p.display().to_string()).collect::<Vec<_>>()})
     };
     let mut v = json!({
         "model": res.model.name(),
@@ -449,7 +418,7 @@ fn report_json(
         "samples": res.fit_samples + res.holdout_samples,
         "fit_samples": res.fit_samples,
         "holdout_samples": res.holdout_samples,
-        "data": a.data.iter().map(|p| p.display().to_string()).collect::<Vec<_>>(),
+        "data": a.data.data.iter().map(|p| p.display().to_string()).collect::<Vec<_>>(),
         "holdout": holdout,
         "before": errors(&res.before),
         "after": errors(&res.after),
@@ -582,17 +551,19 @@ fn markdown(
     s.push_str(&format!(
         "Fit on {}; held out: {}.\n\n",
         a.data
+            .data
             .iter()
             .map(|p| format!("`{}`", name(p)))
             .collect::<Vec<_>>()
             .join(", "),
-        if a.holdout.is_empty() {
+        if a.data.holdout.is_empty() {
             format!(
                 "every fourth time block ({:.0} % of the samples)",
                 100.0 * res.holdout_samples as f64 / (res.holdout_samples + res.fit_samples) as f64
             )
         } else {
-            a.holdout
+            a.data
+                .holdout
                 .iter()
                 .map(|p| format!("`{}`", name(p)))
                 .collect::<Vec<_>>()

@@ -31,6 +31,25 @@ const QUANTITIES: [(&str, &str, Units); 5] = [
     ),
 ];
 
+/// The measured data a command fits and scores on (flattened into `rig identify` and
+/// `rig calibrate`).
+#[derive(Debug, clap::Args)]
+pub struct DataArgs {
+    /// Measured data to fit: CSV (header row) or an MCAP recording of the rig. Repeatable
+    #[arg(long, required = true, value_name = "FILE")]
+    pub data: Vec<std::path::PathBuf>,
+    /// Data held out of the fit, on which the before/after figures are computed. Repeatable.
+    /// Without it, `rig identify` holds out every fourth time block of each --data file and
+    /// `rig calibrate` scores on the fit data
+    #[arg(long, value_name = "FILE")]
+    pub holdout: Vec<std::path::PathBuf>,
+    /// Which CSV column is which quantity, with units: QUANTITY=COLUMN[:UNIT],…
+    /// Quantities: t (s|ms), phi (rad|deg), tau (Nm|Nmm), d (mm|m), q (rad|deg).
+    /// Default: columns named t, phi, tau, d, q in s, rad, N·m, mm, rad
+    #[arg(long, value_name = "MAP", verbatim_doc_comment)]
+    pub columns: Option<String>,
+}
+
 /// Where each quantity comes from: a column name and the factor to SI.
 #[derive(Debug, Clone, PartialEq)]
 pub struct ColumnMap {

@@ -29,6 +29,7 @@ mod bench;
 mod board;
 mod calibrate;
 mod config;
+mod config_edit;
 mod error;
 mod hosts;
 mod identify;
