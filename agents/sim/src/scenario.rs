@@ -64,8 +64,12 @@ pub enum ScenarioError {
     Invalid { file: PathBuf, message: String },
     #[error("{0}")]
     Config(#[from] rig_config::ConfigErrors),
+    /// The scenario asks for what the simulator does not have (the text says what).
     #[error("simulation: {0}")]
     Sim(String),
+    /// A plant could not be built or stepped (its own error as the source).
+    #[error("simulation: {0}")]
+    Plant(#[source] Box<dyn std::error::Error + Send + Sync>),
     #[error("writing output: {0}")]
     Sink(String),
 }
@@ -335,7 +339,7 @@ pub fn run(
                 }
             };
             let mut plant = LeverJointPlant::new(vsa, hysteresis, s.effects, d, 1.0)
-                .map_err(|e| sim(e.to_string()))?;
+                .map_err(|e| ScenarioError::Plant(e.into()))?;
             header(&["t", "phi", "tau", "d", "true_phi", "true_tau"].map(String::from))
                 .map_err(sink)?;
             let path = bench_path(n as usize, ts, b.amplitude_rad, s.seed);
@@ -443,13 +447,13 @@ pub fn run(
                     )
                 })
                 .collect::<Result<Vec<_>, _>>()
-                .map_err(|e| sim(e.to_string()))?;
+                .map_err(|e| ScenarioError::Plant(e.into()))?;
             let sensors = PlanarSensors {
                 encoder_resolution_rad: res,
                 force_noise_n: s.sensors.force_noise_n,
             };
             let mut rig = PlanarRigSim::new(robot, joints, home, sensors, s.seed, ts)
-                .map_err(|e| sim(e.to_string()))?;
+                .map_err(|e| ScenarioError::Plant(e.into()))?;
             let nj = r.pivot_mm.len();
             let mut cols: Vec<String> = ["t", "x_m", "y_m", "fx_n", "fy_n"]
                 .map(String::from)
@@ -476,7 +480,7 @@ pub fn run(
                 };
                 let smp = rig
                     .step(stroke.offset((k - i as u64 * per) as f64 * ts))
-                    .map_err(|e| sim(e.to_string()))?;
+                    .map_err(|e| ScenarioError::Plant(e.into()))?;
                 let mut v = vec![
                     smp.t,
                     smp.ee_m.0,

@@ -136,7 +136,7 @@ pub enum IdentifyError {
     #[error("{run}: {what}")]
     Run { run: String, what: String },
     #[error("the declared restoring model could not be fitted: {0}")]
-    Restoring(String),
+    Restoring(#[source] crate::hysteresis::FitError),
     #[error("the least-squares fit failed (the columns are not finite)")]
     Solve,
 }

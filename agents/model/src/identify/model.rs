@@ -308,7 +308,7 @@ pub(crate) fn fit_restoring_on(
     };
     fit_restoring(&samples, &fo)
         .map(|f| f.curve)
-        .map_err(|e| IdentifyError::Restoring(e.to_string()))
+        .map_err(IdentifyError::Restoring)
 }
 
 /// The declared model's parameters.
