@@ -319,3 +319,23 @@ fn joint_effects_are_read_in_lab_units_and_a_bad_zero_is_named() {
         ]
     );
 }
+
+#[test]
+fn a_watchdog_of_ages_is_refused() {
+    let e = errors_after("bench.toml", "watchdog_ms = 500.0", "watchdog_ms = 1e300");
+    assert_eq!(e.len(), 1, "{e:?}");
+    assert_eq!(e[0].field, "joint[0].limits.watchdog_ms");
+    assert!(e[0].message.contains("within a minute"), "{}", e[0].message);
+}
+
+#[test]
+fn a_home_pose_outside_a_motors_limits_is_refused_naming_the_angle() {
+    let e = errors_after(
+        "parallel.toml",
+        "motor_min_deg = 0.0 ",
+        "motor_min_deg = 120.0 ",
+    );
+    assert_eq!(e.len(), 1, "{e:?}");
+    assert_eq!(e[0].field, "joint[0].limits.motor_min_deg");
+    assert!(e[0].message.contains("114.0 deg"), "{}", e[0].message);
+}

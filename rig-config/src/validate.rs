@@ -187,7 +187,7 @@ fn build(c: &mut Collector<'_>, raw: &RawConfig) -> Option<RigConfig> {
     let observer = observer(c, raw.observer.as_ref());
     let zenoh = zenoh(c, raw.zenoh.as_ref());
     let clock = clock(c, raw.clock.as_ref());
-    Some(RigConfig {
+    let cfg = RigConfig {
         source: Default::default(),
         name: raw.rig.name.clone(),
         topology: topology?,
@@ -197,7 +197,44 @@ fn build(c: &mut Collector<'_>, raw: &RawConfig) -> Option<RigConfig> {
         observer: observer?,
         zenoh: zenoh?,
         clock: clock?,
-    })
+    };
+    home_within_motor_limits(c, &jp, &cfg);
+    Some(cfg)
+}
+
+/// A robot's home pose puts each actuated joint's motor within its own limits (the
+/// simulated world holds the motors there; a real rig starts there).
+fn home_within_motor_limits(c: &mut Collector<'_>, jp: &FieldPath, cfg: &RigConfig) {
+    let (Some(robot), Some(g)) = (cfg.robot(), cfg.geometry) else {
+        return;
+    };
+    let Ok(at) = robot.at_position(g.home.0, g.home.1) else {
+        return;
+    };
+    for (i, j) in cfg.joints.iter().enumerate().take(robot.actuated()) {
+        let Some(&theta) = at.theta.get(i) else {
+            continue;
+        };
+        let l = j.limits;
+        if theta < l.motor_min_rad || theta > l.motor_max_rad {
+            let field = if theta < l.motor_min_rad {
+                "motor_min_deg"
+            } else {
+                "motor_max_deg"
+            };
+            c.push(
+                &jp.index(i).key("limits").key(field),
+                format!(
+                    "the home pose ({:.1}, {:.1}) mm puts this joint's motor at {:.1} deg, outside [{:.1}, {:.1}] deg",
+                    g.home.0 * 1e3,
+                    g.home.1 * 1e3,
+                    theta.to_degrees(),
+                    l.motor_min_rad.to_degrees(),
+                    l.motor_max_rad.to_degrees()
+                ),
+            );
+        }
+    }
 }
 
 /// Names used in key expressions (rig, joint): 1–64 of `[A-Za-z0-9_-]`.
@@ -806,7 +843,18 @@ fn limits(
         );
         ok = false;
     }
-    ok &= c.positive(&p.key("watchdog_ms"), l.watchdog_ms);
+    if c.positive(&p.key("watchdog_ms"), l.watchdog_ms) && l.watchdog_ms > 60_000.0 {
+        c.push(
+            &p.key("watchdog_ms"),
+            format!(
+                "{} ms is no watchdog: a joint must hold within a minute of its last command (paper B's rig: 500)",
+                l.watchdog_ms
+            ),
+        );
+        ok = false;
+    } else if !(l.watchdog_ms.is_finite() && l.watchdog_ms > 0.0) {
+        ok = false;
+    }
     let (rate_field, rate, other_field, other, scale) = match kind {
         JointKind::Lever { .. } => (
             "pivot_rate_mm_per_s",

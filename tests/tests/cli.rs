@@ -106,3 +106,45 @@ fn a_stiffness_goal_that_is_not_a_percentage_of_the_range_is_refused() {
         }
     }
 }
+
+#[test]
+fn bytes_that_are_no_recording_are_an_error_and_a_report_never_makes_directories() {
+    let dir = std::env::temp_dir().join(format!("rig-cli-files-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    // Random bytes are not a recording: refused with status 1, naming the file.
+    let junk = dir.join("junk.mcap");
+    let bytes: Vec<u8> = (0..300u32)
+        .map(|i| (i.wrapping_mul(2_654_435_761) >> 13) as u8)
+        .collect();
+    std::fs::write(&junk, bytes).unwrap();
+    for args in [
+        vec!["replay", "--as-fast-as-possible", junk.to_str().unwrap()],
+        vec!["replay", "--estimate", junk.to_str().unwrap()],
+    ] {
+        let (code, err) = run("rig", &args);
+        assert_eq!(code, Some(1), "{args:?}: {err}");
+        assert!(
+            err.contains("junk.mcap") && err.contains("not an MCAP recording"),
+            "{err}"
+        );
+    }
+    // `--report` into a directory that does not exist: refused before the fit, nothing made.
+    let csv = dir.join("d.csv");
+    std::fs::write(&csv, "t,phi,tau\n0,0,0\n0.001,0.001,0.001\n").unwrap();
+    let missing = dir.join("no/such/dir");
+    let report = missing.join("o.json");
+    let (code, err) = run(
+        "rig",
+        &[
+            "identify",
+            "--data",
+            csv.to_str().unwrap(),
+            "--report",
+            report.to_str().unwrap(),
+        ],
+    );
+    assert_eq!(code, Some(1), "{err}");
+    assert!(err.contains("does not exist"), "{err}");
+    assert!(!dir.join("no").exists(), "a directory was made");
+    std::fs::remove_dir_all(&dir).ok();
+}

@@ -101,6 +101,16 @@ pub fn run(a: &Args) -> Result<(), CliError> {
             "--rate-window-ms must be > 0, got {w}"
         )));
     }
+    // Checked before the fit: the report goes into a directory that exists (none is made).
+    if let Some(dir) = a.report.parent().filter(|p| !p.as_os_str().is_empty())
+        && !dir.is_dir()
+    {
+        return Err(CliError::Invalid(format!(
+            "--report {}: the directory {} does not exist (create it first)",
+            a.report.display(),
+            dir.display()
+        )));
+    }
     let map = ColumnMap::parse(a.data.columns.as_deref())?;
     let lever = match &a.config {
         Some(path) => {
@@ -168,9 +178,6 @@ pub fn run(a: &Args) -> Result<(), CliError> {
 
     let notes = notes(&res, &fit_runs, &held_runs);
     let report = report_json(a, &res, &sampling, &notes, held_runs.is_empty());
-    if let Some(dir) = a.report.parent().filter(|p| !p.as_os_str().is_empty()) {
-        std::fs::create_dir_all(dir)?;
-    }
     std::fs::write(
         &a.report,
         serde_json::to_string_pretty(&report).unwrap_or_default(),

@@ -156,7 +156,16 @@ pub fn read_all(path: &PathBuf) -> Result<(Vec<Recorded>, bool), CliError> {
                 log_time: m.log_time,
                 data: m.data.into_owned(),
             }),
+            Err(e) if out.is_empty() => {
+                // Not one complete record: not a recording of ours (random bytes, another
+                // format, or cut before its first message).
+                return Err(CliError::Invalid(format!(
+                    "{}: not an MCAP recording with any complete message: {e}",
+                    path.display()
+                )));
+            }
             Err(_) => {
+                // A killed recorder leaves a partial last record: what precedes it is kept.
                 truncated = true;
                 break;
             }
