@@ -293,7 +293,7 @@ fn a_python_client_subscribes_and_decodes_a_sample() {
     wait_alive(&hub, &[alive("estimator", "0")]);
     let _j = joint("j1", &hub, now_ns());
     let script = Path::new(env!("CARGO_MANIFEST_DIR")).join("../protocol/python/subscribe.py");
-    let out = Command::new("python3")
+    let out = common::tool("python3")
         .arg(script)
         .args(s(&[&hub, "rig/parallel/joint/j1/sample", "3", "15"]))
         .output()
@@ -507,18 +507,18 @@ fn bench_latency_and_throughput_report_consistent_figures() {
     assert!((7_600.0..=8_400.0).contains(&rate), "{v}");
 }
 
-/// The `rerun` CLI of the version the rig's SDK writes (installed by `.ci/run`).
+/// The `rerun` CLI of the version the rig's SDK writes (`cargo xtask test` installs it).
 fn rerun_cli() -> Command {
-    let ok = Command::new("rerun")
+    let ok = common::tool("rerun")
         .arg("--version")
         .output()
         .map(|o| String::from_utf8_lossy(&o.stdout).contains(" 0.36."))
         .unwrap_or(false);
     assert!(
         ok,
-        "the rerun CLI 0.36.x is needed: pip install rerun-sdk==0.36.3 (.ci/run installs it)"
+        "the rerun CLI 0.36.x is needed: run the tests with `cargo xtask test` (or pip install rerun-sdk==0.36.3)"
     );
-    Command::new("rerun")
+    common::tool("rerun")
 }
 
 /// Rows of data per (entity, archetype) in an .rrd, read with `rerun rrd print`.

@@ -1,13 +1,14 @@
 //! The wire format is cross-language: `protocol/python/rig_wire.py`, written from WIRE.md with
 //! Python's `struct` only, decodes what the Rust encoder writes, field by field.
 //!
-//! Needs `python3` on PATH (CI installs it). A missing interpreter fails the test.
+//! Needs `python3` (`cargo xtask test` provides it). A missing interpreter fails the test.
 
 // Test helpers may panic: a failed helper is a failed test.
 #![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)]
 
+mod common;
+
 use std::path::{Path, PathBuf};
-use std::process::Command;
 
 use rig_protocol::*;
 use serde_json::Value;
@@ -32,7 +33,7 @@ fn python_decode(payloads: &[Vec<u8>]) -> Result<Vec<Value>, String> {
         std::fs::write(&f, p).map_err(|e| e.to_string())?;
         files.push(f);
     }
-    let out = Command::new("python3")
+    let out = common::tool("python3")
         .arg(decoder())
         .args(&files)
         .output()

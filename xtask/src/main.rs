@@ -4,8 +4,10 @@
 //! client decoding our wire format, the `rerun` CLI verifying our recordings — and they fail,
 //! rightly, when those are missing. This task makes them present: a project-local Python
 //! environment (`.venv/`, made with `python3 -m venv --system-site-packages`, so what the
-//! machine already has is reused) with the pinned packages installed where they are missing,
-//! put first on `PATH`; then `cargo test --workspace --release ARGS…` with that `PATH`.
+//! machine already has is reused) with the pinned packages installed where they are missing;
+//! then `cargo test --workspace --release ARGS…` with `RIG_TOOLS_BIN` naming its `bin`, where
+//! the tests look for `python3` and `rerun` first. `PATH` stays as it is: build scripts that
+//! watch it would otherwise rebuild half the tree for the tests.
 //!
 //! Needs `python3` with its `venv` module (Debian/Ubuntu: `apt install python3 python3-venv`)
 //! and, on the first run, network access to PyPI.
@@ -109,8 +111,7 @@ fn test(args: &[String]) -> Result<(), String> {
             .current_dir(&root)
             .args(["test", "--workspace", "--release"])
             .args(args)
-            .env("PATH", path_with(&bin))
-            .env("VIRTUAL_ENV", bin.parent().unwrap_or(&bin)),
+            .env("RIG_TOOLS_BIN", &bin),
         "cargo test",
     )
 }

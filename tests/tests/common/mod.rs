@@ -60,6 +60,19 @@ pub fn spawn_logged(name: &str, args: &[String], log: &std::path::Path) -> Proc 
     )
 }
 
+/// An external tool the tests check against (`python3`, `rerun`): from `RIG_TOOLS_BIN` when
+/// `cargo xtask test` set it (its project-local Python environment), else from `PATH`. The
+/// environment is passed this way, not on `PATH`, so that cargo's build scripts see the same
+/// `PATH` as the run command's build and nothing is rebuilt for the tests.
+pub fn tool(name: &str) -> Command {
+    match std::env::var_os("RIG_TOOLS_BIN") {
+        Some(dir) if Path::new(&dir).join(name).exists() => {
+            Command::new(Path::new(&dir).join(name))
+        }
+        _ => Command::new(name),
+    }
+}
+
 pub fn s(v: &[&str]) -> Vec<String> {
     v.iter().map(|x| x.to_string()).collect()
 }
