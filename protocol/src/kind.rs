@@ -36,14 +36,6 @@ macro_rules! generate_kind {
                     $(Kind::$name => $format,)*
                 }
             }
-
-            /// The direction the kind travels in: `joint`, `estimate`, `allocation` or `sim`
-            /// (the module of `messages` that defines it).
-            pub fn direction(self) -> &'static str {
-                match self {
-                    $(Kind::$name => stringify!($direction),)*
-                }
-            }
         }
 
         impl TryFrom<u8> for Kind {

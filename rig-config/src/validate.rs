@@ -843,7 +843,9 @@ fn limits(
         );
         ok = false;
     }
-    if c.positive(&p.key("watchdog_ms"), l.watchdog_ms) && l.watchdog_ms > 60_000.0 {
+    if !c.positive(&p.key("watchdog_ms"), l.watchdog_ms) {
+        ok = false;
+    } else if l.watchdog_ms > 60_000.0 {
         c.push(
             &p.key("watchdog_ms"),
             format!(
@@ -851,8 +853,6 @@ fn limits(
                 l.watchdog_ms
             ),
         );
-        ok = false;
-    } else if !(l.watchdog_ms.is_finite() && l.watchdog_ms > 0.0) {
         ok = false;
     }
     let (rate_field, rate, other_field, other, scale) = match kind {

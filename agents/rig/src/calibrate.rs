@@ -11,7 +11,7 @@ use std::path::{Path, PathBuf};
 
 use rig_config::{JointKind, RigConfig};
 use rig_model::hysteresis::{
-    FitOptions, FitSample, RestoringCurve, RestoringParams, RestoringTorqueModel, fit_restoring,
+    FitOptions, FitSample, RestoringCurve, RestoringParams, fit_restoring, replay_curve,
 };
 use rig_model::identify::Run;
 use serde_json::json;
@@ -96,16 +96,15 @@ fn samples(run: &Run, pivot_m: Option<f64>, file: &Path) -> Result<Vec<FitSample
 
 /// Torque RMSE [N·m] of `curve` replayed over each run from a virgin state.
 fn rmse(curve: &RestoringCurve, dead_band: f64, runs: &[Vec<FitSample>]) -> f64 {
-    let (mut sq, mut n) = (0.0, 0usize);
-    for run in runs {
-        let mut m = RestoringTorqueModel::new(curve.clone(), dead_band);
-        for s in run {
-            let e = m.update(s.phi, s.d) - s.tau;
-            sq += e * e;
-            n += 1;
-        }
-    }
-    (sq / n.max(1) as f64).sqrt()
+    let refs: Vec<&[FitSample]> = runs.iter().map(Vec::as_slice).collect();
+    let predicted = replay_curve(curve, &refs, dead_band);
+    let measured = runs.iter().flatten().map(|s| s.tau);
+    let sq: f64 = predicted
+        .iter()
+        .zip(measured)
+        .map(|(p, m)| (p - m).powi(2))
+        .sum();
+    (sq / predicted.len().max(1) as f64).sqrt()
 }
 
 /// The merged table: the fitted points, and the config's points no fitted point is within

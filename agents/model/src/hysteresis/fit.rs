@@ -99,9 +99,15 @@ pub struct RestoringFit {
 
 /// Replays the model with fixed parameters over runs, each from a virgin state.
 pub fn replay(params: RestoringParams, runs: &[&[FitSample]], dead_band: f64) -> Vec<f64> {
+    replay_curve(&RestoringCurve::constant(params), runs, dead_band)
+}
+
+/// Replays the model with a parameter curve over runs, each from a virgin state: the torque
+/// it gives at every sample, in order.
+pub fn replay_curve(curve: &RestoringCurve, runs: &[&[FitSample]], dead_band: f64) -> Vec<f64> {
     let mut out = Vec::with_capacity(runs.iter().map(|r| r.len()).sum());
     for run in runs {
-        let mut m = RestoringTorqueModel::new(RestoringCurve::constant(params), dead_band);
+        let mut m = RestoringTorqueModel::new(curve.clone(), dead_band);
         out.extend(run.iter().map(|s| m.update(s.phi, s.d)));
     }
     out

@@ -9,7 +9,9 @@ pub mod fit;
 pub mod restoring;
 
 pub use bouc_wen::{BoucWen, BoucWenError, BoucWenParams};
-pub use fit::{FitError, FitOptions, FitSample, GroupFit, RestoringFit, fit_restoring};
+pub use fit::{
+    FitError, FitOptions, FitSample, GroupFit, RestoringFit, fit_restoring, replay_curve,
+};
 pub use restoring::{
     AS5048A_COUNT_RAD, RestoringCurve, RestoringParams, RestoringTorqueModel, Reversal,
     ReversalDetector, Segment,
