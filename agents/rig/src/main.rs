@@ -42,6 +42,7 @@ mod reproduce;
 mod scan;
 mod sim;
 mod up;
+mod up_watch;
 mod validate;
 mod viz;
 

@@ -6,20 +6,19 @@
 //! The roles run as tasks of this process but talk only through Zenoh, exactly as the
 //! separate `rig-joint`, `rig estimator` and `rig allocator` processes do.
 
-use std::collections::BTreeMap;
 use std::path::PathBuf;
 use std::time::Duration;
 
 use rig_config::RigConfig;
 use rig_joint::agent::BackendKind;
 use rig_protocol::{
-    AllocationRequest, AllocationTarget, EeEstimate, JointEstimate, JointSample, SimTruth, decode,
-    encode,
+    AllocationRequest, AllocationResult, AllocationTarget, EeEstimate, JointEstimate, JointSample,
+    SimTruth, decode, encode,
 };
 use rig_runtime::{NetArgs, RunFor, now_ns, tokio_runtime, zenoh_err};
 
+use crate::up_watch::Watch;
 use crate::viz::no_viewer_in_connect;
-use rig_sim::world::{HAND_STROKE_M, HAND_STROKE_S, StrokeWorld};
 use tokio::sync::watch;
 
 use crate::error::CliError;
@@ -58,159 +57,6 @@ pub struct Args {
 pub(crate) fn free_loopback_endpoint() -> Result<String, CliError> {
     let l = std::net::TcpListener::bind("127.0.0.1:0")?;
     Ok(format!("tcp/127.0.0.1:{}", l.local_addr()?.port()))
-}
-
-/// What the summary watches: counts, and the force error scored as estimates and truths
-/// meet (bounded memory however long the rig runs).
-struct Watch {
-    samples: BTreeMap<u16, u64>,
-    joints: usize,
-    world: Option<StrokeWorld>,
-    start_ns: u64,
-    /// True torques and estimated forces by tick, until their other half arrives.
-    truths: BTreeMap<u64, BTreeMap<u16, f64>>,
-    ee: BTreeMap<u64, (f64, f64)>,
-    /// Squared error, count and peak truth of the ticks after the warm-up, and of those in it.
-    settled: ForceError,
-    warm_up: ForceError,
-    /// Per joint: squared residual (measured − modelled torque) and count, after the warm-up.
-    residuals: BTreeMap<u16, (f64, u64)>,
-}
-
-/// The estimated end-effector force against the truth over some ticks.
-#[derive(Debug, Clone, Copy, Default)]
-struct ForceError {
-    sq: f64,
-    count: usize,
-    peak: f64,
-}
-
-impl ForceError {
-    fn add(&mut self, err: (f64, f64), truth: f64) {
-        self.sq += err.0 * err.0 + err.1 * err.1;
-        self.count += 1;
-        self.peak = self.peak.max(truth);
-    }
-
-    fn rmse(&self) -> f64 {
-        (self.sq / self.count.max(1) as f64).sqrt()
-    }
-}
-
-/// The first seconds of the world, while the estimator's observers settle from the config's
-/// values and the hysteresis models from their virgin state: reported apart (the distributed
-/// test warms up as long).
-const WARM_UP_S: f64 = 2.0;
-
-/// How long an unmatched truth or estimate waits for its other half [ns].
-const MATCH_WINDOW_NS: u64 = 2_000_000_000;
-
-impl Watch {
-    fn new(cfg: &RigConfig, start_ns: u64) -> Self {
-        let world = cfg.robot().zip(cfg.geometry).and_then(|(robot, g)| {
-            StrokeWorld::new(robot, g.home, HAND_STROKE_M, HAND_STROKE_S).ok()
-        });
-        Self {
-            samples: BTreeMap::new(),
-            joints: cfg.joints.len(),
-            world,
-            start_ns,
-            truths: BTreeMap::new(),
-            ee: BTreeMap::new(),
-            settled: ForceError::default(),
-            warm_up: ForceError::default(),
-            residuals: BTreeMap::new(),
-        }
-    }
-
-    /// A joint's live residual [N·m] (where it has a torque reference), after the warm-up.
-    fn residual(&mut self, t_ns: u64, joint: u16, residual: Option<f64>) {
-        let settled = t_ns.saturating_sub(self.start_ns) as f64 * 1e-9 >= WARM_UP_S;
-        if let (true, Some(r)) = (settled, residual) {
-            let e = self.residuals.entry(joint).or_default();
-            e.0 += r * r;
-            e.1 += 1;
-        }
-    }
-
-    /// Joint `j`'s residual RMS [N·m], if it has a torque reference.
-    fn residual_rms(&self, j: u16) -> Option<f64> {
-        self.residuals
-            .get(&j)
-            .filter(|(_, n)| *n > 0)
-            .map(|(sq, n)| (sq / *n as f64).sqrt())
-    }
-
-    fn truth(&mut self, t_ns: u64, joint: u16, torque: f64) {
-        if self.world.is_none() {
-            return;
-        }
-        self.truths.entry(t_ns).or_default().insert(joint, torque);
-        self.score(t_ns);
-    }
-
-    fn estimate(&mut self, t_ns: u64, force: Option<(f64, f64)>) {
-        if let (Some(f), Some(_)) = (force, &self.world) {
-            self.ee.insert(t_ns, f);
-            self.score(t_ns);
-        }
-    }
-
-    /// Scores tick `t_ns` once it has an estimate and every joint's truth; forgets what
-    /// waited longer than the match window.
-    fn score(&mut self, t_ns: u64) {
-        let complete = self
-            .truths
-            .get(&t_ns)
-            .is_some_and(|t| t.len() == self.joints);
-        if complete && let Some(&(fx, fy)) = self.ee.get(&t_ns) {
-            let torques: Vec<f64> = self
-                .truths
-                .remove(&t_ns)
-                .map(|t| t.into_values().collect())
-                .unwrap_or_default();
-            self.ee.remove(&t_ns);
-            let t = t_ns.saturating_sub(self.start_ns) as f64 * 1e-9;
-            if let Some(Ok(f)) = self.world.as_ref().map(|w| w.force(t, &torques)) {
-                let part = if t < WARM_UP_S {
-                    &mut self.warm_up
-                } else {
-                    &mut self.settled
-                };
-                part.add((fx - f[0], fy - f[1]), f.norm());
-            }
-        }
-        let oldest = t_ns.saturating_sub(MATCH_WINDOW_NS);
-        self.truths = self.truths.split_off(&oldest);
-        self.ee = self.ee.split_off(&oldest);
-    }
-
-    /// The estimated force against the simulated truth (robots only).
-    fn force_error(&self) -> Option<String> {
-        self.world.as_ref()?;
-        let (s, w) = (self.settled, self.warm_up);
-        let warm = if w.count > 0 {
-            format!(
-                "; in the first {WARM_UP_S} s, while the observers settle: RMSE {:.4} N over {} estimates",
-                w.rmse(),
-                w.count
-            )
-        } else {
-            String::new()
-        };
-        if s.count == 0 {
-            return Some(format!(
-                "force vs simulated truth: no estimate after the first {WARM_UP_S} s matched a complete truth{warm}"
-            ));
-        }
-        Some(format!(
-            "force vs simulated truth over {} estimates after the first {WARM_UP_S} s: RMSE {:.4} N = {:.2} % of the {:.3} N peak{warm}",
-            s.count,
-            s.rmse(),
-            100.0 * s.rmse() / s.peak.max(1e-12),
-            s.peak
-        ))
-    }
 }
 
 /// How long `rig up` waits for a role's liveliness token.
@@ -273,6 +119,10 @@ async fn up(cfg: RigConfig, args: &Args) -> Result<(), CliError> {
             .declare_subscriber(keys.all_joint_estimates())
             .await
             .map_err(zenoh_err)?,
+        session
+            .declare_subscriber(keys.allocation_result())
+            .await
+            .map_err(zenoh_err)?,
     );
     eprintln!(
         "rig up: rig \"{}\" ({}, {} joints) on {hub}; {}",
@@ -331,13 +181,16 @@ async fn up(cfg: RigConfig, args: &Args) -> Result<(), CliError> {
                 *w.samples.entry(m.joint).or_default() += 1;
             },
             s = subs.1.recv_async() => if let Ok(s) = s && let Ok(m) = decode::<SimTruth>(&s.payload().to_bytes()) {
-                w.truth(m.t_acq_ns, m.joint, m.torque_nm);
+                w.truth(&m);
             },
             s = subs.2.recv_async() => if let Ok(s) = s && let Ok(m) = decode::<EeEstimate>(&s.payload().to_bytes()) {
-                w.estimate(m.t_ns, m.force_n);
+                w.estimate(&m);
             },
             s = subs.3.recv_async() => if let Ok(s) = s && let Ok(m) = decode::<JointEstimate>(&s.payload().to_bytes()) {
-                w.residual(m.t_acq_ns, m.joint, m.residual_nm);
+                w.joint_estimate(&m);
+            },
+            s = subs.4.recv_async() => if let Ok(s) = s && let Ok(m) = decode::<AllocationResult>(&s.payload().to_bytes()) {
+                w.allocation(&m);
             },
         }
     }
@@ -361,21 +214,36 @@ async fn up(cfg: RigConfig, args: &Args) -> Result<(), CliError> {
         cfg.rate_hz
     );
     println!(
-        "{:<8} {:>9} {:>9} {:>10} {:>10} {:>20}",
-        "joint", "samples", "skipped", "commands", "rejected", "residual RMS [N·m]"
+        "{:<8} {:>9} {:>9} {:>10} {:>10} {:>20} {:>22}",
+        "joint",
+        "samples",
+        "skipped",
+        "commands",
+        "rejected",
+        "residual RMS [N·m]",
+        "stiffness vs truth"
     );
     for (name, r) in &joint_reports {
         // The live residual (measured − modelled torque) after the warm-up, where the joint
         // has a torque reference.
-        let residual = cfg
-            .joints
-            .iter()
-            .position(|j| &j.name == name)
+        let j = cfg.joints.iter().position(|j| &j.name == name);
+        let residual = j
             .and_then(|j| w.residual_rms(j as u16))
             .map_or("—".to_string(), |r| format!("{r:.4}"));
+        // The mean relative error of the joint's stiffness estimate against the simulated
+        // spring's, after the warm-up.
+        let stiffness = j
+            .and_then(|j| w.stiffness_error(j as u16))
+            .map_or("—".to_string(), |e| format!("{:+.1} %", 100.0 * e));
         println!(
-            "{:<8} {:>9} {:>9} {:>10} {:>10} {:>20}",
-            name, r.samples, r.skipped_ticks, r.commands_accepted, r.commands_rejected, residual
+            "{:<8} {:>9} {:>9} {:>10} {:>10} {:>20} {:>22}",
+            name,
+            r.samples,
+            r.skipped_ticks,
+            r.commands_accepted,
+            r.commands_rejected,
+            residual,
+            stiffness
         );
     }
     let c = est_report.core;
@@ -398,6 +266,9 @@ async fn up(cfg: RigConfig, args: &Args) -> Result<(), CliError> {
         alloc_report.goals, alloc_report.requests, alloc_report.commands
     );
     if let Some(line) = w.force_error() {
+        println!("{line}");
+    }
+    if let Some(line) = w.operational_error() {
         println!("{line}");
     }
     if let Some(v) = viz_stats {

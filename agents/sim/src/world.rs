@@ -5,8 +5,11 @@
 //! prescribed), and each agent's own torque from its own joint. On a single-joint bench the
 //! hand rotates the output link back and forth instead ([`bench_path`]).
 
+use nalgebra::Matrix2;
 use nalgebra::Vector2;
-use rig_model::planar::{KinematicsError, PlanarRobot, end_effector_force, wrap_angle};
+use rig_model::planar::{
+    KinematicsError, PlanarRobot, end_effector_force, operational_stiffness, wrap_angle,
+};
 
 use crate::noise::Noise;
 use crate::planar_rig::Stroke;
@@ -87,6 +90,18 @@ impl StrokeWorld {
         let (x, y) = self.position(t);
         let c = self.robot.at_position(x, y)?;
         end_effector_force(&c.g_u_a, torques)
+    }
+
+    /// The operational stiffness K_uu [N/m] at time `t` given every joint's true stiffness
+    /// (small loads: the load-dependent geometric term neglected, as MODEL.md §3).
+    pub fn operational_stiffness(
+        &self,
+        t: f64,
+        stiffness: &[f64],
+    ) -> Result<Matrix2<f64>, KinematicsError> {
+        let (x, y) = self.position(t);
+        let c = self.robot.at_position(x, y)?;
+        operational_stiffness(&c.g_u_a, stiffness)
     }
 }
 
