@@ -96,8 +96,13 @@ fn allocation_solve(c: &mut Criterion) {
     )
     .unwrap();
     let target = problem.decoupled_target(25.0).unwrap();
-    c.bench_function("allocation solve (BVLS + tie-break)", |b| {
+    // The solver the allocator calls (closed form along the null space here) and the
+    // reference it must agree with, in one run: their ratio is the figure to read.
+    c.bench_function("allocation solve (closed form along the null space)", |b| {
         b.iter(|| black_box(problem.solve(black_box(target)).unwrap()))
+    });
+    c.bench_function("allocation solve (BVLS + active-set tie-break)", |b| {
+        b.iter(|| black_box(problem.solve_by_active_sets(black_box(target)).unwrap()))
     });
 }
 
