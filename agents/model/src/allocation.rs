@@ -235,6 +235,13 @@ impl AllocationProblem {
         // The segment of k_p + σ·v inside the bounds.
         let (mut lo, mut hi) = (f64::NEG_INFINITY, f64::INFINITY);
         for j in 0..4 {
+            if v[j] == 0.0 {
+                // This joint does not move along the segment: it must already be inside.
+                if kp[j] < self.k_min[j] || kp[j] > self.k_max[j] {
+                    return None;
+                }
+                continue;
+            }
             let (a, b) = (
                 (self.k_min[j] - kp[j]) / v[j],
                 (self.k_max[j] - kp[j]) / v[j],
@@ -245,7 +252,7 @@ impl AllocationProblem {
         // Empty (beyond rounding): the target is not met inside the box; BVLS finds the
         // nearest one.
         let tol = 1e-12 * (hi.abs().max(lo.abs()).max(1e-300));
-        if !(lo <= hi + tol) {
+        if lo.is_nan() || hi.is_nan() || lo > hi + tol {
             return None;
         }
         // Σ ((k_p + σ·v − c)/w)² is least at σ₀ = Σ v(c − k_p)/w² / Σ v²/w².
