@@ -14,6 +14,8 @@
 mod table;
 
 pub mod codec;
+#[cfg(feature = "json")]
+pub mod json;
 pub mod keys;
 pub mod kind;
 pub mod messages;

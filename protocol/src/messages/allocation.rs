@@ -8,6 +8,10 @@ use crate::validation::{Check, MAX_JOINTS, ValidationError};
 
 /// What an allocation request asks for.
 #[derive(Debug, Clone, Copy, PartialEq)]
+#[cfg_attr(
+    feature = "json",
+    derive(serde::Serialize, serde::Deserialize, schemars::JsonSchema)
+)]
 pub enum AllocationTarget {
     /// An explicit operational stiffness [N/m].
     Stiffness(StiffnessTriple),
@@ -17,6 +21,10 @@ pub enum AllocationTarget {
 
 /// A request to the allocator.
 #[derive(Debug, Clone, Copy, PartialEq)]
+#[cfg_attr(
+    feature = "json",
+    derive(serde::Serialize, serde::Deserialize, schemars::JsonSchema)
+)]
 pub struct AllocationRequest {
     /// Chosen by the requester; echoed in the result.
     pub id: u64,
@@ -92,6 +100,10 @@ impl Message for AllocationRequest {
 
 /// The allocator's answer.
 #[derive(Debug, Clone, PartialEq)]
+#[cfg_attr(
+    feature = "json",
+    derive(serde::Serialize, serde::Deserialize, schemars::JsonSchema)
+)]
 pub struct AllocationResult {
     pub id: u64,
     pub feasible: bool,

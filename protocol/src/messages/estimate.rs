@@ -7,6 +7,10 @@ use crate::validation::{Check, MAX_TORQUE_NM, ValidationError};
 
 /// The estimator's view of one joint, for one sample.
 #[derive(Debug, Clone, Copy, PartialEq)]
+#[cfg_attr(
+    feature = "json",
+    derive(serde::Serialize, serde::Deserialize, schemars::JsonSchema)
+)]
 pub struct JointEstimate {
     pub joint: u16,
     /// Sequence number of the sample this estimate comes from.
@@ -92,6 +96,10 @@ impl Message for JointEstimate {
 
 /// The estimator's view of the end effector.
 #[derive(Debug, Clone, Copy, PartialEq)]
+#[cfg_attr(
+    feature = "json",
+    derive(serde::Serialize, serde::Deserialize, schemars::JsonSchema)
+)]
 pub struct EeEstimate {
     pub seq: u64,
     /// Time the estimate refers to (aligned sample time) [ns].

@@ -8,6 +8,10 @@ use crate::validation::{Check, MAX_TORQUE_NM, ValidationError};
 
 /// A joint agent's sample: what the joint board read at one instant.
 #[derive(Debug, Clone, Copy, PartialEq)]
+#[cfg_attr(
+    feature = "json",
+    derive(serde::Serialize, serde::Deserialize, schemars::JsonSchema)
+)]
 pub struct JointSample {
     /// Joint index in the rig config (0-based).
     pub joint: u16,
@@ -95,6 +99,10 @@ impl Message for JointSample {
 
 /// A command to a joint agent. The agent checks it against its own limits.
 #[derive(Debug, Clone, Copy, PartialEq)]
+#[cfg_attr(
+    feature = "json",
+    derive(serde::Serialize, serde::Deserialize, schemars::JsonSchema)
+)]
 pub struct JointCommand {
     pub joint: u16,
     pub seq: u64,
@@ -179,6 +187,10 @@ impl Message for JointCommand {
 /// The state a joint agent reports.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 #[repr(u8)]
+#[cfg_attr(
+    feature = "json",
+    derive(serde::Serialize, serde::Deserialize, schemars::JsonSchema)
+)]
 pub enum JointState {
     /// Running normally.
     Ok = 0,
@@ -210,6 +222,10 @@ impl JointState {
 
 /// A joint agent's status.
 #[derive(Debug, Clone, PartialEq)]
+#[cfg_attr(
+    feature = "json",
+    derive(serde::Serialize, serde::Deserialize, schemars::JsonSchema)
+)]
 pub struct JointStatus {
     pub joint: u16,
     pub seq: u64,

@@ -122,6 +122,10 @@ wire_table!(generate_any_message);
 
 /// Operational stiffness (k_xx, k_xy, k_yy) [N/m].
 #[derive(Debug, Clone, Copy, PartialEq)]
+#[cfg_attr(
+    feature = "json",
+    derive(serde::Serialize, serde::Deserialize, schemars::JsonSchema)
+)]
 pub struct StiffnessTriple {
     pub xx: f64,
     pub xy: f64,

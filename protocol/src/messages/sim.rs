@@ -8,6 +8,10 @@ use crate::validation::{Check, MAX_TORQUE_NM, ValidationError};
 /// What the simulator knows and no sensor reads: published by simulated joint agents only,
 /// so that tests and summaries can score estimates against the truth.
 #[derive(Debug, Clone, Copy, PartialEq)]
+#[cfg_attr(
+    feature = "json",
+    derive(serde::Serialize, serde::Deserialize, schemars::JsonSchema)
+)]
 pub struct SimTruth {
     pub joint: u16,
     /// Sequence number and acquisition time of the sample this truth belongs to.
