@@ -684,12 +684,7 @@ fn a_bench_joints_torque_offset_is_diagnosed_live_and_shown_in_rerun() {
     // The summary's live residual RMS: the 0.05 N·m offset over 3 mN·m of sensor noise (the
     // config's table was fitted on this simulated spring, so the model adds little).
     let summary = String::from_utf8_lossy(&o.stdout);
-    let residual: f64 = summary
-        .lines()
-        .find(|l| l.starts_with("j1 "))
-        .and_then(|l| l.split_whitespace().last())
-        .and_then(|v| v.parse().ok())
-        .unwrap_or_else(|| panic!("no residual RMS for j1 in:\n{summary}"));
+    let residual = summary_residual_rms(&summary, "j1");
     assert!(
         (0.045..=0.06).contains(&residual),
         "residual RMS {residual} N·m for a 0.05 N·m offset"
@@ -809,12 +804,7 @@ fn a_recording_of_the_bench_is_identified_and_its_undeclared_offset_named() {
             .unwrap();
         assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
         let summary = String::from_utf8_lossy(&o.stdout).into_owned();
-        summary
-            .lines()
-            .find(|l| l.starts_with("j1 "))
-            .and_then(|l| l.split_whitespace().last())
-            .and_then(|v| v.parse().ok())
-            .unwrap_or_else(|| panic!("no residual RMS for j1 in:\n{summary}"))
+        summary_residual_rms(&summary, "j1")
     };
     let (before, after) = (residual(&bench), residual(&applied));
     println!("live residual RMS: {before:.4} N·m as declared, {after:.4} N·m with --apply");
@@ -823,4 +813,15 @@ fn a_recording_of_the_bench_is_identified_and_its_undeclared_offset_named() {
         after < 0.006,
         "after {after} N·m: the 3 mN·m sensor noise is the floor"
     );
+}
+
+/// Joint `joint`'s live residual RMS [N·m] from `rig up`'s summary table: the sixth column
+/// (joint, samples, skipped, commands, rejected, residual RMS, then stiffness vs truth).
+fn summary_residual_rms(summary: &str, joint: &str) -> f64 {
+    summary
+        .lines()
+        .find(|l| l.starts_with(&format!("{joint} ")))
+        .and_then(|l| l.split_whitespace().nth(5))
+        .and_then(|v| v.parse().ok())
+        .unwrap_or_else(|| panic!("no residual RMS for {joint} in:\n{summary}"))
 }

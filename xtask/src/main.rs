@@ -109,7 +109,7 @@ fn test(args: &[String]) -> Result<(), String> {
     run(
         Command::new(cargo)
             .current_dir(&root)
-            .args(["test", "--workspace", "--release"])
+            .args(["test", "--workspace", "--release", "--no-fail-fast"])
             .args(args)
             .env("RIG_TOOLS_BIN", &bin),
         "cargo test",
@@ -122,7 +122,7 @@ fn main() -> ExitCode {
         Some("test") => test(&args[1..]),
         _ => {
             eprintln!(
-                "usage: cargo xtask test [CARGO TEST ARGS…]\n\n  test  set up the test tools (a project-local Python environment in .venv/ with\n        {ZENOH} and {RERUN}) and run `cargo test --workspace --release`"
+                "usage: cargo xtask test [CARGO TEST ARGS…]\n\n  test  set up the test tools (a project-local Python environment in .venv/ with\n        {ZENOH} and {RERUN}) and run `cargo test --workspace --release --no-fail-fast` (every failing test binary reported)"
             );
             return ExitCode::from(2);
         }
