@@ -1,11 +1,12 @@
 //! `cargo xtask test [ARGS…]`: the README's test command on a fresh machine.
 //!
 //! The tests check the rig against tools other people wrote — the Python `eclipse-zenoh`
-//! client decoding our wire format, the `rerun` CLI verifying our recordings — and they fail,
+//! client decoding our wire format, the `rerun` CLI verifying our viewer files, Python's `mcap`
+//! and `jsonschema` reading our recordings — and they fail,
 //! rightly, when those are missing. This task makes them present: a project-local Python
 //! environment (`.venv/`, made with `python3 -m venv --system-site-packages`, so what the
 //! machine already has is reused) with the pinned packages installed where they are missing;
-//! then `cargo test --workspace --release ARGS…` with `RIG_TOOLS_BIN` naming its `bin`, where
+//! then `cargo test --workspace --release --no-fail-fast ARGS…` with `RIG_TOOLS_BIN` naming its `bin`, where
 //! the tests look for `python3` and `rerun` first. `PATH` stays as it is: build scripts that
 //! watch it would otherwise rebuild half the tree for the tests.
 //!
@@ -20,6 +21,9 @@ use std::process::{Command, ExitCode};
 const ZENOH: &str = "eclipse-zenoh==1.10.2";
 const RERUN: &str = "rerun-sdk==0.36.3";
 const RERUN_VERSION: &str = " 0.36.3";
+/// A recording's independent reader: MCAP and JSON Schema (protocol/python/read_recording.py).
+const MCAP: &str = "mcap==1.2.2";
+const JSONSCHEMA: &str = "jsonschema==4.26.0";
 
 fn root() -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR"))
@@ -75,8 +79,10 @@ fn python_env(root: &Path) -> Result<PathBuf, String> {
             &format!("pip install {req}"),
         )
     };
-    if !succeeds(Command::new(&python).args(["-c", "import zenoh"])) {
-        pip(ZENOH)?;
+    for (module, req) in [("zenoh", ZENOH), ("mcap", MCAP), ("jsonschema", JSONSCHEMA)] {
+        if !succeeds(Command::new(&python).args(["-c", &format!("import {module}")])) {
+            pip(req)?;
+        }
     }
     let rerun_ok = || {
         Command::new("rerun")
@@ -122,7 +128,7 @@ fn main() -> ExitCode {
         Some("test") => test(&args[1..]),
         _ => {
             eprintln!(
-                "usage: cargo xtask test [CARGO TEST ARGS…]\n\n  test  set up the test tools (a project-local Python environment in .venv/ with\n        {ZENOH} and {RERUN}) and run `cargo test --workspace --release --no-fail-fast` (every failing test binary reported)"
+                "usage: cargo xtask test [CARGO TEST ARGS…]\n\n  test  set up the test tools (a project-local Python environment in .venv/ with\n        {ZENOH}, {RERUN}, {MCAP}, {JSONSCHEMA}) and run `cargo test --workspace --release --no-fail-fast` (every failing test binary reported)"
             );
             return ExitCode::from(2);
         }

@@ -272,7 +272,7 @@ fn read_csv(path: &Path, map: &ColumnMap) -> Result<(Run, Sampling), CliError> {
 fn read_mcap(path: &Path, joint: Option<&str>) -> Result<(Run, Sampling), CliError> {
     let name = path.display().to_string();
     let bad = |m: String| CliError::Invalid(format!("{name}: {m}"));
-    let (msgs, _) = crate::record::read_all(&path.to_path_buf())?;
+    let (msgs, _) = crate::record::read_all(path)?;
     let mut by_joint: BTreeMap<String, Vec<JointSample>> = BTreeMap::new();
     for m in &msgs {
         if let Some(rest) = m.topic.strip_suffix("/sample")

@@ -5,7 +5,8 @@
 //!   (`rig_joint`), the estimator host (`rig_estimator`: its core turns samples into torques
 //!   and the end-effector force), the allocator host (`rig_allocator`);
 //! - `rig estimator`, `rig allocator` → [`hosts`]: those hosts as processes of their own;
-//! - `rig record`, `rig replay` → [`record`] (MCAP; `--estimate` runs `rig_estimator::core`);
+//! - `rig record`, `rig replay` → [`record`] (MCAP of JSON channels, `rig_protocol::json`;
+//!   `--estimate` runs `rig_estimator::core`); `rig export` → [`export`] (CSV per topic);
 //! - `rig validate` → [`validate`] → `rig_config::load`;
 //! - `rig allocate` → [`allocate`] → `rig_model::planar` (S matrix at the pose) and
 //!   `rig_model::allocation` (bounded least squares, tie-break) and `rig_model::lever`
@@ -31,6 +32,7 @@ mod calibrate;
 mod config;
 mod config_edit;
 mod error;
+mod export;
 mod hosts;
 mod identify;
 mod identify_data;
@@ -76,6 +78,12 @@ enum Command {
     /// Republish an MCAP recording; with --estimate run the estimator offline over it and
     /// compare with the live estimates it holds; with --viz (--spawn, --save) draw it in Rerun.
     Replay(record::ReplayArgs),
+    /// Write a recording as one CSV file per topic, columns named with their units, for
+    /// pandas and spreadsheets:
+    ///
+    ///   rig export run.mcap --to csv run/
+    #[command(verbatim_doc_comment)]
+    Export(export::Args),
     /// Check rig config files; print a summary, or every problem with file, line and field.
     ///
     /// Exit status: 0 when every file is valid, 1 otherwise.
@@ -87,7 +95,7 @@ enum Command {
     /// outside the range, or not reachable exactly: the best compromise is still printed),
     /// 1 for a bad config.
     Allocate(allocate::Args),
-    /// Run a simulation scenario (TOML) and write its sensor stream as CSV.
+    /// Run a simulation scenario (TOML) and write its sensor stream as CSV or MCAP.
     ///
     /// Scenarios pick a plant (lever-bench, awas, serial, parallel), the excitation, the
     /// sensors and any undeclared effects; see agents/sim/scenarios/ for examples.
@@ -132,6 +140,7 @@ fn main() -> ExitCode {
         Command::Allocator(a) => hosts::allocator(&a),
         Command::Record(a) => record::record(&a),
         Command::Replay(a) => record::replay(&a),
+        Command::Export(a) => export::run(&a),
         Command::Validate(a) => validate::run(&a),
         Command::Allocate(a) => allocate::run(&a),
         Command::Sim(a) => sim::run(&a),

@@ -1,35 +1,144 @@
 //! `rig record` and `rig replay`: every message under `rig/<rig>/**` to an MCAP file and back.
 //!
-//! Each key is an MCAP channel (topic = the key, message encoding `rig-wire/1`: the payload
-//! exactly as on the wire, `protocol/WIRE.md`); each message kind has a schema (encoding
-//! `rig-wire/1`, data: its Python struct layout). Records are written unchunked and flushed
-//! every 100 ms, so a killed recorder leaves a file whose complete records all read back.
-//! `rig replay --estimate` runs the estimator's core offline over the recorded samples and
-//! compares with the live estimates in the same file.
+//! Each key is an MCAP channel (topic = the key) in **JSON** (message encoding `json`, schema
+//! encoding `jsonschema`, schema `rig.<Kind>` with the kind's JSON Schema), which Foxglove,
+//! PlotJuggler and any MCAP reader open without a plugin. The conversion is lossless
+//! (`rig_protocol::json`): reading a recording turns each message back into the exact wire
+//! bytes, so `rig replay --estimate` is exact. A payload that is not a valid rig message is kept
+//! as it came, on a channel of encoding `rig-wire/1` (nothing is lost, and the recording says
+//! what arrived); recordings made before JSON (`rig-wire/1` throughout) still read. Records are
+//! written unchunked and flushed every 100 ms, so a killed recorder leaves a file whose
+//! complete records all read back. `rig replay --estimate` runs the estimator's core offline
+//! over the recorded samples and compares with the live estimates in the same file.
 
 use std::collections::BTreeMap;
 use std::io::BufWriter;
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 use std::time::Duration;
 
 use rig_estimator::core::{CoreTiming, EstimatorCore, Output};
-use rig_protocol::{EeEstimate, JointEstimate, JointSample, Keys, Kind, decode};
+use rig_protocol::json::{
+    encode_any, from_json, json_schema, kind_of_schema, schema_name, to_json,
+};
+use rig_protocol::{EeEstimate, JointEstimate, JointSample, Keys, decode, decode_any};
 use rig_runtime::{NetArgs, RunFor, now_ns, open, tokio_runtime, zenoh_err};
 
 use crate::error::CliError;
 
-/// Message encoding of every channel.
-pub const ENCODING: &str = "rig-wire/1";
+/// Message encoding of the channels of valid rig messages (schema encoding `jsonschema`).
+pub const JSON: &str = "json";
+/// Message encoding of payloads kept as they arrived: the wire bytes (`protocol/WIRE.md`).
+pub const WIRE: &str = "rig-wire/1";
 
-/// A kind's MCAP schema: its name and its layout (the envelope's and the body's Python
-/// `struct` formats, from the wire table).
-fn schema_of(kind: u8) -> (String, String) {
-    match Kind::try_from(kind) {
-        Ok(k) => (
-            format!("rig.{}", k.name()),
-            format!("<2sBBI {}", k.body_format()),
-        ),
-        Err(_) => ("rig.Unknown".into(), "not a rig message".into()),
+/// How one message is written: its channel's schema (name, encoding, data), the channel's
+/// message encoding, and the bytes.
+struct Encoded {
+    schema: (String, &'static str, String),
+    encoding: &'static str,
+    data: Vec<u8>,
+}
+
+/// A received payload as it is recorded: JSON when it is a valid rig message, else as it came.
+fn encode_for_recording(bytes: &[u8]) -> Encoded {
+    match decode_any(bytes) {
+        Ok(m) => Encoded {
+            schema: (schema_name(m.kind()), "jsonschema", json_schema(m.kind())),
+            encoding: JSON,
+            data: to_json(&m),
+        },
+        Err(_) => Encoded {
+            schema: (
+                "rig.Unreadable".into(),
+                WIRE,
+                "payloads that are not valid rig messages, kept as they arrived (protocol/WIRE.md)"
+                    .into(),
+            ),
+            encoding: WIRE,
+            data: bytes.to_vec(),
+        },
+    }
+}
+
+/// An MCAP file being recorded: one channel per (key, encoding), one schema per kind,
+/// records unchunked (so a killed recorder leaves every flushed record readable).
+pub struct Recording<W: std::io::Write + std::io::Seek> {
+    writer: mcap::Writer<W>,
+    schemas: BTreeMap<String, u16>,
+    channels: BTreeMap<(String, &'static str), u16>,
+    sequence: u32,
+}
+
+impl Recording<BufWriter<std::fs::File>> {
+    /// A new recording at `path` (replaced if it exists).
+    pub fn create(path: &Path) -> Result<Self, CliError> {
+        Self::new(BufWriter::new(std::fs::File::create(path)?))
+    }
+}
+
+impl<W: std::io::Write + std::io::Seek> Recording<W> {
+    pub fn new(w: W) -> Result<Self, CliError> {
+        Ok(Self {
+            writer: mcap::WriteOptions::new()
+                .use_chunks(false)
+                .profile("rig")
+                .create(w)?,
+            schemas: BTreeMap::new(),
+            channels: BTreeMap::new(),
+            sequence: 0,
+        })
+    }
+
+    /// Records one payload received on `key`: JSON when it is a valid rig message, else
+    /// the bytes as they came.
+    pub fn write(
+        &mut self,
+        key: &str,
+        payload: &[u8],
+        log_time: u64,
+        publish_time: u64,
+    ) -> Result<(), CliError> {
+        let e = encode_for_recording(payload);
+        let (name, encoding, data) = &e.schema;
+        let schema = match self.schemas.get(name) {
+            Some(&id) => id,
+            None => {
+                let id = self.writer.add_schema(name, encoding, data.as_bytes())?;
+                self.schemas.insert(name.clone(), id);
+                id
+            }
+        };
+        let channel = match self.channels.get(&(key.to_string(), e.encoding)) {
+            Some(&id) => id,
+            None => {
+                let id = self
+                    .writer
+                    .add_channel(schema, key, e.encoding, &BTreeMap::new())?;
+                self.channels.insert((key.to_string(), e.encoding), id);
+                id
+            }
+        };
+        self.sequence = self.sequence.wrapping_add(1);
+        self.writer.write_to_known_channel(
+            &mcap::records::MessageHeader {
+                channel_id: channel,
+                sequence: self.sequence,
+                log_time,
+                publish_time,
+            },
+            &e.data,
+        )?;
+        Ok(())
+    }
+
+    /// Pushes what is buffered to the file.
+    pub fn flush(&mut self) -> Result<(), CliError> {
+        Ok(self.writer.flush()?)
+    }
+
+    /// Writes the summary and the footer; (messages, channels) recorded.
+    pub fn finish(mut self) -> Result<(u32, usize), CliError> {
+        self.writer.finish()?;
+        Ok((self.sequence, self.channels.len()))
     }
 }
 
@@ -74,15 +183,7 @@ pub fn record(a: &RecordArgs) -> Result<(), CliError> {
             )
             .await
             .map_err(zenoh_err)?;
-        let file = std::fs::File::create(&a.out)?;
-        let mut w = mcap::WriteOptions::new()
-            .use_chunks(false)
-            .profile("rig")
-            .create(BufWriter::new(file))
-            ?;
-        let mut schemas: BTreeMap<u8, u16> = BTreeMap::new();
-        let mut channels: BTreeMap<String, u16> = BTreeMap::new();
-        let mut seq = 0u32;
+        let mut w = Recording::create(&a.out)?;
         let deadline = a.run_for.duration.map(|d| tokio::time::Instant::now() + d);
         let mut flush = tokio::time::interval(Duration::from_millis(100));
         let ctrl_c = tokio::signal::ctrl_c();
@@ -96,51 +197,67 @@ pub fn record(a: &RecordArgs) -> Result<(), CliError> {
                 _ = flush.tick() => w.flush()?,
                 s = rx.recv() => {
                     let Some(s) = s else { break };
-                    let bytes = s.payload().to_bytes();
-                    let kind = bytes.get(3).copied().unwrap_or(0);
-                    let key = s.key_expr().as_str().to_string();
-                    let schema = match schemas.get(&kind) {
-                        Some(&id) => id,
-                        None => {
-                            let (name, data) = schema_of(kind);
-                            let id = w.add_schema(&name, ENCODING, data.as_bytes())?;
-                            schemas.insert(kind, id);
-                            id
-                        }
-                    };
-                    let channel = match channels.get(&key) {
-                        Some(&id) => id,
-                        None => {
-                            let id = w.add_channel(schema, &key, ENCODING, &BTreeMap::new())?;
-                            channels.insert(key, id);
-                            id
-                        }
-                    };
                     let log_time = now_ns();
-                    let publish_time = s.timestamp().map_or(log_time, |t| t.get_time().to_system_time().duration_since(std::time::UNIX_EPOCH).map_or(log_time, |d| d.as_nanos() as u64));
-                    seq = seq.wrapping_add(1);
-                    w.write_to_known_channel(&mcap::records::MessageHeader { channel_id: channel, sequence: seq, log_time, publish_time }, &bytes)
-                        ?;
+                    let publish_time = s.timestamp().map_or(log_time, |t| {
+                        t.get_time()
+                            .to_system_time()
+                            .duration_since(std::time::UNIX_EPOCH)
+                            .map_or(log_time, |d| d.as_nanos() as u64)
+                    });
+                    w.write(s.key_expr().as_str(), &s.payload().to_bytes(), log_time, publish_time)?;
                 }
             }
         }
-        w.finish()?;
+        let (messages, keys) = w.finish()?;
         let _ = session.close().await;
-        eprintln!("rig record: {seq} messages on {} keys written to {}", channels.len(), a.out.display());
+        eprintln!("rig record: {messages} messages on {keys} keys written to {}", a.out.display());
         Ok(())
     })
 }
 
-/// One recorded message.
+/// One recorded message, as its wire bytes.
 pub struct Recorded {
     pub topic: String,
     pub log_time: u64,
     pub data: Vec<u8>,
 }
 
-/// Reads every complete message; a file cut short (killed recorder) ends at its last whole
-/// record, which is reported, not an error.
-pub fn read_all(path: &PathBuf) -> Result<(Vec<Recorded>, bool), CliError> {
+/// One recorded message as it is stored: its channel's topic, message encoding and schema
+/// name, and the bytes.
+pub struct Stored {
+    pub topic: String,
+    pub encoding: String,
+    pub schema: String,
+    pub sequence: u32,
+    pub log_time: u64,
+    pub data: Vec<u8>,
+}
+
+impl Stored {
+    /// The rig message's wire bytes: JSON read back (exactly), or the bytes as kept.
+    pub fn wire_bytes(&self) -> Result<Vec<u8>, String> {
+        match self.encoding.as_str() {
+            JSON => {
+                let kind = kind_of_schema(&self.schema).ok_or_else(|| {
+                    format!(
+                        "JSON channel with schema {:?}, not a rig.<Kind>",
+                        self.schema
+                    )
+                })?;
+                let msg = from_json(kind, &self.data).map_err(|e| e.to_string())?;
+                encode_any(&msg).map_err(|e| e.to_string())
+            }
+            WIRE => Ok(self.data.clone()),
+            other => Err(format!(
+                "message encoding {other:?} (expected {JSON} or {WIRE})"
+            )),
+        }
+    }
+}
+
+/// Reads every complete message as stored; a file cut short (killed recorder) ends at its
+/// last whole record, which is reported (`true`), not an error.
+pub fn read_stored(path: &Path) -> Result<(Vec<Stored>, bool), CliError> {
     let buf = std::fs::read(path)?;
     let stream = mcap::MessageStream::new_with_options(
         &buf,
@@ -151,8 +268,15 @@ pub fn read_all(path: &PathBuf) -> Result<(Vec<Recorded>, bool), CliError> {
     let mut truncated = false;
     for m in stream {
         match m {
-            Ok(m) => out.push(Recorded {
+            Ok(m) => out.push(Stored {
                 topic: m.channel.topic.clone(),
+                encoding: m.channel.message_encoding.clone(),
+                schema: m
+                    .channel
+                    .schema
+                    .as_ref()
+                    .map_or(String::new(), |s| s.name.clone()),
+                sequence: m.sequence,
                 log_time: m.log_time,
                 data: m.data.into_owned(),
             }),
@@ -172,6 +296,31 @@ pub fn read_all(path: &PathBuf) -> Result<(Vec<Recorded>, bool), CliError> {
         }
     }
     Ok((out, truncated))
+}
+
+/// Reads every complete rig message, as wire bytes (see [`read_stored`] for a file cut
+/// short). A message that is not a rig message is an error naming it.
+pub fn read_all(path: &Path) -> Result<(Vec<Recorded>, bool), CliError> {
+    let (stored, truncated) = read_stored(path)?;
+    let msgs = stored
+        .into_iter()
+        .map(|m| {
+            let data = m.wire_bytes().map_err(|e| {
+                CliError::Invalid(format!(
+                    "{}: message {} on {}: {e}",
+                    path.display(),
+                    m.sequence,
+                    m.topic
+                ))
+            })?;
+            Ok(Recorded {
+                topic: m.topic,
+                log_time: m.log_time,
+                data,
+            })
+        })
+        .collect::<Result<Vec<_>, CliError>>()?;
+    Ok((msgs, truncated))
 }
 
 #[derive(Debug, clap::Args)]
@@ -352,4 +501,133 @@ fn estimate_offline(
         );
     }
     Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use rig_protocol::encode;
+
+    fn sample(seq: u64) -> Vec<u8> {
+        encode(&JointSample {
+            joint: 0,
+            seq,
+            t_acq_ns: 1_763_776_000_000_000_000 + seq,
+            motor_rad: 0.1 / 3.0,
+            deflection_rad: -1e-300,
+            pivot_m: Some(0.009),
+            torque_nm: None,
+            motor_torque_nm: Some(f64::MIN_POSITIVE),
+            stiffness_motor_rad: None,
+        })
+        .unwrap()
+    }
+
+    fn temp(name: &str) -> PathBuf {
+        let dir = std::env::temp_dir().join(format!("rig-record-unit-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        dir.join(name)
+    }
+
+    #[test]
+    fn valid_messages_are_json_junk_is_kept_as_wire_and_both_read_back_to_the_bytes_received() {
+        let path = temp("mixed.mcap");
+        let key = "rig/t/joint/j1/sample";
+        let junk = vec![0xde, 0xad, 0xbe, 0xef];
+        let mut r = Recording::create(&path).unwrap();
+        r.write(key, &sample(1), 10, 9).unwrap();
+        r.write(key, &junk, 11, 11).unwrap();
+        r.write(key, &sample(2), 12, 12).unwrap();
+        // One key, two channels: its JSON and its unreadable payloads.
+        assert_eq!(r.finish().unwrap(), (3, 2));
+        let (stored, truncated) = read_stored(&path).unwrap();
+        assert!(!truncated);
+        let how: Vec<(&str, &str)> = stored
+            .iter()
+            .map(|m| (m.encoding.as_str(), m.schema.as_str()))
+            .collect();
+        assert_eq!(
+            how,
+            [
+                (JSON, "rig.JointSample"),
+                (WIRE, "rig.Unreadable"),
+                (JSON, "rig.JointSample")
+            ]
+        );
+        let v: serde_json::Value = serde_json::from_slice(&stored[2].data).unwrap();
+        assert_eq!(v["seq"], 2);
+        let (msgs, _) = read_all(&path).unwrap();
+        let bytes: Vec<&[u8]> = msgs.iter().map(|m| m.data.as_slice()).collect();
+        assert_eq!(bytes, [&sample(1)[..], &junk[..], &sample(2)[..]]);
+        assert_eq!(msgs[0].log_time, 10);
+    }
+
+    #[test]
+    fn a_recording_of_wire_channels_as_made_before_json_still_reads() {
+        let path = temp("wire.mcap");
+        let mut w = mcap::WriteOptions::new()
+            .use_chunks(false)
+            .create(BufWriter::new(std::fs::File::create(&path).unwrap()))
+            .unwrap();
+        let schema = w
+            .add_schema("rig.JointSample", WIRE, b"<python struct layout>")
+            .unwrap();
+        let ch = w
+            .add_channel(schema, "rig/t/joint/j1/sample", WIRE, &BTreeMap::new())
+            .unwrap();
+        for seq in 1..=3 {
+            let header = mcap::records::MessageHeader {
+                channel_id: ch,
+                sequence: seq,
+                log_time: seq.into(),
+                publish_time: seq.into(),
+            };
+            w.write_to_known_channel(&header, &sample(seq.into()))
+                .unwrap();
+        }
+        w.finish().unwrap();
+        let (msgs, truncated) = read_all(&path).unwrap();
+        assert!(!truncated);
+        assert_eq!(msgs.len(), 3);
+        assert_eq!(msgs[2].data, sample(3));
+    }
+
+    #[test]
+    fn a_json_channel_of_an_unknown_schema_or_a_broken_message_is_named() {
+        let path = temp("foreign.mcap");
+        let mut w = mcap::WriteOptions::new()
+            .create(BufWriter::new(std::fs::File::create(&path).unwrap()))
+            .unwrap();
+        let foreign = w.add_schema("acme.Pose", "jsonschema", b"{}").unwrap();
+        let ours = w
+            .add_schema("rig.JointSample", "jsonschema", b"{}")
+            .unwrap();
+        let a = w
+            .add_channel(foreign, "acme/pose", JSON, &BTreeMap::new())
+            .unwrap();
+        let b = w
+            .add_channel(ours, "rig/t/joint/j1/sample", JSON, &BTreeMap::new())
+            .unwrap();
+        let header = |channel_id, sequence| mcap::records::MessageHeader {
+            channel_id,
+            sequence,
+            log_time: 1,
+            publish_time: 1,
+        };
+        w.write_to_known_channel(&header(a, 1), b"{\"x\": 1}")
+            .unwrap();
+        w.write_to_known_channel(&header(b, 2), b"{\"joint\": 0}")
+            .unwrap();
+        w.finish().unwrap();
+        let err = read_all(&path).err().unwrap().to_string();
+        assert!(
+            err.contains("message 1 on acme/pose") && err.contains("acme.Pose"),
+            "{err}"
+        );
+        // `rig export` still reads both: the foreign one as it is.
+        let (stored, _) = read_stored(&path).unwrap();
+        assert_eq!(stored.len(), 2);
+        let err = stored[1].wire_bytes().unwrap_err();
+        assert!(err.contains("JointSample") && err.contains("seq"), "{err}");
+    }
 }

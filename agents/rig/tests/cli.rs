@@ -263,7 +263,7 @@ fn a_target_met_only_approximately_is_reported_with_the_compromise() {
 }
 
 #[test]
-fn sim_writes_every_example_scenario_as_csv() {
+fn sim_writes_every_example_scenario_as_csv_and_as_mcap_that_exports_back_to_the_same_numbers() {
     let dir = std::env::temp_dir().join(format!("rig-sim-{}", std::process::id()));
     std::fs::create_dir_all(&dir).unwrap();
     for name in [
@@ -314,8 +314,53 @@ fn sim_writes_every_example_scenario_as_csv() {
             rows.iter()
                 .all(|r| r.len() == header.len() && r.iter().all(|v| v.is_finite()))
         );
+        // The same scenario into MCAP, exported back to CSV: the same columns in the same
+        // order after the log time, and the same numbers.
+        let mcap = dir.join(format!("{name}.mcap"));
+        let o = rig(&[
+            "sim",
+            "--scenario",
+            scen.to_str().unwrap(),
+            "--out",
+            mcap.to_str().unwrap(),
+        ]);
+        assert!(o.status.success(), "{name}: {}", text(&o.stderr));
+        let exported = dir.join(format!("{name}-export"));
+        let o = rig(&[
+            "export",
+            mcap.to_str().unwrap(),
+            "--to",
+            "csv",
+            exported.to_str().unwrap(),
+        ]);
+        assert!(o.status.success(), "{name}: {}", text(&o.stderr));
+        let kind = src
+            .lines()
+            .find_map(|l| l.strip_prefix("kind = "))
+            .unwrap()
+            .trim_matches('"');
+        let back = std::fs::read_to_string(exported.join(format!("sim.{kind}.csv"))).unwrap();
+        let mut lines = back.lines();
+        let back_header: Vec<&str> = lines.next().unwrap().split(',').collect();
+        let back_rows: Vec<Vec<f64>> = lines
+            .map(|l| l.split(',').map(|v| v.parse().unwrap()).collect())
+            .collect();
+        assert_eq!(back_rows.len(), rows.len(), "{name}");
+        assert_eq!(back_header[0], "log_time_ns");
+        assert_eq!(back_header[1..], header[..], "{name}");
+        for (c, col) in header.iter().enumerate() {
+            let b = back_header.iter().position(|h| h == col).unwrap();
+            for (r, (row, back)) in rows.iter().zip(&back_rows).enumerate() {
+                assert_eq!(row[c], back[b], "{name}: row {r}, column {col}");
+            }
+        }
+        let log_time = back_header
+            .iter()
+            .position(|h| *h == "log_time_ns")
+            .unwrap();
+        assert_eq!(back_rows[1][log_time], (rows[1][0] * 1e9).round(), "{name}");
     }
-    // A broken scenario names the problem; a non-CSV output is refused.
+    // A broken scenario names the problem; an output neither CSV nor MCAP is refused.
     let bad = dir.join("bad.toml");
     std::fs::write(&bad, "kind = \"lever-bench\"\nduration_s = 1.0\n").unwrap();
     let o = rig(&[
