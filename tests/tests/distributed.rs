@@ -913,3 +913,87 @@ fn summary_residual_rms(summary: &str, joint: &str) -> f64 {
         .and_then(|v| v.parse().ok())
         .unwrap_or_else(|| panic!("no residual RMS for {joint} in:\n{summary}"))
 }
+
+#[test]
+fn a_flood_of_malformed_commands_and_goals_is_counted_in_full_and_said_in_a_few_lines() {
+    // A peer sends 1 000 malformed commands to a joint and 1 000 malformed goals to the
+    // allocator: each is dropped and counted; the log says the 1st, 10th, 100th and 1000th,
+    // not a line each (a flood must not fill the log), and the final report has the count.
+    let _one_at_a_time = serial();
+    let hub = format!("tcp/127.0.0.1:{}", free_port());
+    let dir = std::env::temp_dir().join(format!("rig-flood-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let (alloc_log, joint_log) = (dir.join("allocator.log"), dir.join("joint.log"));
+    let cfg = config().to_string_lossy().into_owned();
+    let alloc = common::spawn_logged(
+        "rig",
+        &s(&["allocator", "--config", &cfg, "--listen", &hub]),
+        &alloc_log,
+    );
+    wait_alive(&hub, &[alive("allocator", "0")]);
+    let start = now_ns().to_string();
+    let joint = common::spawn_logged(
+        "rig-joint",
+        &s(&[
+            "--config",
+            &cfg,
+            "--joint",
+            "j1",
+            "--start-ns",
+            &start,
+            "--connect",
+            &hub,
+        ]),
+        &joint_log,
+    );
+    wait_alive(&hub, &[alive("joint", "j1")]);
+    const FLOOD: usize = 1000;
+    rt().block_on(async {
+        let z = session(&hub).await;
+        for i in 0..FLOOD {
+            // Empty, truncated, a wrong version, random: never a valid message.
+            let junk: Vec<u8> = (0..i % 40).map(|b| (b * 37 + i) as u8).collect();
+            for key in [
+                "rig/parallel/joint/j1/command",
+                "rig/parallel/stiffness/goal",
+            ] {
+                z.put(key, junk.clone())
+                    .congestion_control(rig_runtime::zenoh::qos::CongestionControl::Block)
+                    .await
+                    .unwrap();
+            }
+        }
+        tokio::time::sleep(Duration::from_secs(1)).await;
+    });
+    for p in [&joint, &alloc] {
+        let stopped = Command::new("kill")
+            .args(["-INT", &p.0.id().to_string()])
+            .status()
+            .unwrap();
+        assert!(stopped.success());
+    }
+    let (mut joint, mut alloc) = (joint, alloc);
+    assert!(joint.0.wait().unwrap().success(), "the joint ends cleanly");
+    assert!(
+        alloc.0.wait().unwrap().success(),
+        "the allocator ends cleanly"
+    );
+    for (log, what, report) in [
+        (&joint_log, "dropped a malformed command", "rig-joint j1:"),
+        (&alloc_log, "dropped a malformed goal", "rig allocator:"),
+    ] {
+        let text = std::fs::read_to_string(log).unwrap();
+        let said = text.lines().filter(|l| l.contains(what)).count();
+        assert!((1..=4).contains(&said), "{said} lines for {FLOOD}:\n{text}");
+        let counted: u64 = text
+            .lines()
+            .filter(|l| l.starts_with(report))
+            .find_map(|l| {
+                let part = l.split(", ").find(|p| p.ends_with(" malformed"))?;
+                part.trim_end_matches(" malformed").parse().ok()
+            })
+            .unwrap_or_else(|| panic!("no malformed count in:\n{text}"));
+        assert_eq!(counted, FLOOD as u64, "{text}");
+    }
+    std::fs::remove_dir_all(&dir).ok();
+}

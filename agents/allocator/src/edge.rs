@@ -65,6 +65,8 @@ pub async fn run(
         .await
         .map_err(z)?;
     let mut report = AllocatorReport::default();
+    // Infeasible goals are answered in the result; the log says the 1st, 10th, 100th…
+    let mut infeasible = rig_runtime::LogBudget::default();
     let mut heartbeat = tokio::time::interval(Duration::from_millis(100));
     heartbeat.set_missed_tick_behavior(tokio::time::MissedTickBehavior::Skip);
     let deadline = opts.duration.map(|d| tokio::time::Instant::now() + d);
@@ -104,8 +106,13 @@ pub async fn run(
                     Ok(req) => {
                         report.goals += 1;
                         let (result, cmds) = core.on_goal(&req, now_ns());
-                        if !result.feasible {
-                            eprintln!("rig allocator: goal {} not applied: {}", req.id, result.error);
+                        if !result.feasible
+                            && let Some(n) = infeasible.count()
+                        {
+                            eprintln!(
+                                "rig allocator: goal {} not applied: {} ({n} goals not applied so far)",
+                                req.id, result.error
+                            );
                         }
                         if let Ok(bytes) = encode(&result) {
                             result_pub.put(bytes).await.map_err(z)?;
@@ -114,7 +121,12 @@ pub async fn run(
                     }
                     Err(e) => {
                         report.malformed += 1;
-                        eprintln!("rig allocator: dropped a malformed goal: {e}");
+                        if rig_runtime::worth_a_line(report.malformed) {
+                            eprintln!(
+                                "rig allocator: dropped a malformed goal: {e} ({} malformed so far)",
+                                report.malformed
+                            );
+                        }
                         Vec::new()
                     }
                 }

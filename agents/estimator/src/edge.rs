@@ -128,14 +128,6 @@ fn lock(state: &Mutex<State>) -> MutexGuard<'_, State> {
         .unwrap_or_else(std::sync::PoisonError::into_inner)
 }
 
-/// 1, 10, 100, …: when a count is worth a line.
-fn power_of_ten(mut n: u64) -> bool {
-    while n >= 10 && n.is_multiple_of(10) {
-        n /= 10;
-    }
-    n == 1
-}
-
 /// One sample from Zenoh: decoded, fed to the core, its estimates published.
 fn on_sample(state: &Mutex<State>, pubs: &Publishers, s: &zenoh::sample::Sample) {
     let sample = match decode::<JointSample>(&s.payload().to_bytes()) {
@@ -147,7 +139,7 @@ fn on_sample(state: &Mutex<State>, pubs: &Publishers, s: &zenoh::sample::Sample)
                 st.report.malformed
             };
             // Counted, and said at the 1st, 10th, 100th…: a flood cannot fill the log.
-            if power_of_ten(n) {
+            if rig_runtime::worth_a_line(n) {
                 eprintln!(
                     "rig estimator: dropped a malformed sample on {}: {e} ({n} malformed so far)",
                     s.key_expr()

@@ -133,6 +133,8 @@ struct Served {
     /// Where the joint's stiffness actuator was at the last reading (the guard's reference).
     actuator: f64,
     report: AgentReport,
+    /// Samples the encoder refused (non-finite readings): said at the 1st, 10th, 100th…
+    unsent: rig_runtime::LogBudget,
     _token: zenoh::liveliness::LivelinessToken,
 }
 
@@ -169,7 +171,12 @@ impl Served {
             let verdict = match decode::<JointCommand>(&bytes) {
                 Err(e) => {
                     self.report.malformed += 1;
-                    eprintln!("rig-joint {}: dropped a malformed command: {e}", self.name);
+                    if rig_runtime::worth_a_line(self.report.malformed) {
+                        eprintln!(
+                            "rig-joint {}: dropped a malformed command: {e} ({} malformed so far)",
+                            self.name, self.report.malformed
+                        );
+                    }
                     continue;
                 }
                 Ok(cmd) => self.guard.on_command(&cmd, now, self.actuator),
@@ -237,7 +244,14 @@ impl Served {
         };
         match encode(&sample) {
             Ok(bytes) => self.sample_pub.put(bytes).await.map_err(z)?,
-            Err(e) => eprintln!("rig-joint {}: sample not sent: {e}", self.name),
+            Err(e) => {
+                if let Some(n) = self.unsent.count() {
+                    eprintln!(
+                        "rig-joint {}: sample not sent: {e} ({n} not sent so far)",
+                        self.name
+                    );
+                }
+            }
         }
         if let Some(t) = r.truth {
             let truth = SimTruth {
@@ -347,6 +361,7 @@ pub async fn run(
             status_seq: 0,
             actuator: f64::NAN,
             report: AgentReport::default(),
+            unsent: rig_runtime::LogBudget::default(),
             _token: session
                 .liveliness()
                 .declare_token(keys.alive("joint", name)?)

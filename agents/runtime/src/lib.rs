@@ -38,6 +38,31 @@ pub enum RuntimeError {
     Key(#[from] rig_protocol::KeyError),
 }
 
+/// Whether the `n`th occurrence of something is worth a line of log: the 1st, 10th, 100th, …
+/// A flood (a peer's malformed messages, a sensor failing every tick) cannot fill the log,
+/// and the line carries the count, so nothing is hidden.
+pub fn worth_a_line(mut n: u64) -> bool {
+    while n >= 10 && n.is_multiple_of(10) {
+        n /= 10;
+    }
+    n == 1
+}
+
+/// Counts occurrences of one thing; [`LogBudget::count`] gives the count when it is worth a
+/// line ([`worth_a_line`]).
+#[derive(Debug, Default, Clone, Copy)]
+pub struct LogBudget {
+    n: u64,
+}
+
+impl LogBudget {
+    /// Counts one; `Some(count so far)` when this one should be said.
+    pub fn count(&mut self) -> Option<u64> {
+        self.n += 1;
+        worth_a_line(self.n).then_some(self.n)
+    }
+}
+
 /// Wraps any Zenoh error, for `.map_err(zenoh_err)?` at the edges.
 pub fn zenoh_err<E: Into<zenoh::Error>>(e: E) -> RuntimeError {
     RuntimeError::Zenoh(e.into())
@@ -229,6 +254,16 @@ pub async fn wait_alive(
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn a_flood_is_said_at_one_ten_a_hundred_and_so_on() {
+        let said: Vec<u64> = (1..=100_000).filter(|&n| worth_a_line(n)).collect();
+        assert_eq!(said, [1, 10, 100, 1000, 10_000, 100_000]);
+        let mut b = LogBudget::default();
+        let lines: Vec<u64> = (0..1000).filter_map(|_| b.count()).collect();
+        assert_eq!(lines, [1, 10, 100, 1000]);
+        assert!(!worth_a_line(0) && !worth_a_line(20) && !worth_a_line(110));
+    }
 
     #[test]
     fn ticks_go_on_until_the_shutdown_or_the_duration_and_a_shutdown_wins_a_tie() {
