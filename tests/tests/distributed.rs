@@ -552,6 +552,22 @@ fn u(v: &serde_json::Value, path: &[&str]) -> u64 {
 }
 
 #[test]
+fn bench_footprint_reads_the_joint_agents_memory_while_it_serves_its_joints() {
+    let _one_at_a_time = serial();
+    let v = bench_json(&["footprint", "--duration", "4"]);
+    let (start, end, peak) = (
+        u(&v, &["rss_start_kb"]),
+        u(&v, &["rss_end_kb"]),
+        u(&v, &["rss_peak_kb"]),
+    );
+    // A real process's resident set: megabytes, the peak at least every reading.
+    assert!(start > 1024 && start <= peak && end <= peak, "{v}");
+    // It served the example's 4 joints at 1 kHz while it was measured.
+    assert_eq!(u(&v, &["joints"]), 4);
+    assert!(u(&v, &["samples_received"]) > 4 * 2000, "{v}");
+}
+
+#[test]
 fn bench_latency_and_throughput_report_consistent_figures() {
     let _one_at_a_time = serial();
     // Latency: 4 joints × 1 kHz for 3 s after 300 timed round trips.

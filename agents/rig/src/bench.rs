@@ -10,6 +10,9 @@
 //! - `rig bench throughput --joints N`: one joint board serving N simulated joints at the
 //!   rate (a bench topology: independent lever joints) against one estimator host; samples
 //!   per second received, samples lost, ticks the board could not keep up with.
+//! - `rig bench footprint`: the joint agent's memory — the `rig-joint` binary as its own
+//!   process serving the config's joints against an estimator host, its resident set read
+//!   from `/proc` ten times a second.
 //! - `rig bench bus`: the `dynamixel` backend's read cycle ([`crate::board`]).
 
 use std::sync::Arc;
@@ -43,6 +46,10 @@ enum What {
     Latency(LatencyArgs),
     /// N simulated joints at the rate on one board against one estimator host.
     Throughput(ThroughputArgs),
+    /// The joint agent's memory: `rig-joint` (built next to `rig`) serving the config's
+    /// joints on one board against an estimator host; its resident set (VmRSS) after the
+    /// start, at the end and at its peak (VmHWM), read from /proc (Linux).
+    Footprint(FootprintArgs),
     /// The dynamixel backend's read cycle (servos and encoders of every joint) against the
     /// wire's theoretical limit; on a virtual board unless --bus/--bridge name hardware.
     ///
@@ -96,10 +103,24 @@ struct ThroughputArgs {
     json: bool,
 }
 
+#[derive(Debug, clap::Args)]
+struct FootprintArgs {
+    /// Rig config (default: the example parallel robot: 4 joints × 1 kHz)
+    #[arg(long, value_name = "FILE")]
+    config: Option<std::path::PathBuf>,
+    /// How long the joint agent runs [s]
+    #[arg(long, default_value = "30", value_name = "SECONDS", value_parser = positive_seconds, allow_negative_numbers = true)]
+    duration: Duration,
+    /// Print one JSON object instead of the table
+    #[arg(long)]
+    json: bool,
+}
+
 pub fn run(args: &Args) -> Result<(), CliError> {
     match &args.what {
         What::Latency(a) => latency(a),
         What::Throughput(a) => throughput(a),
+        What::Footprint(a) => footprint(a),
         What::Bus(a) => crate::board::bench_bus(a),
     }
 }
@@ -146,6 +167,10 @@ struct ThroughputReport {
     /// The estimator host's sample→estimate latency [µs] (see `rig bench latency`).
     latency_us: LatencySummary,
     duration_s: f64,
+    /// This process's resident set (the estimator host and the load generator) 2 s after
+    /// the start and at the end [kB]: flat over a long run means no growth.
+    rss_start_kb: Option<u64>,
+    rss_end_kb: Option<u64>,
 }
 
 fn zerr<E: Into<zenoh::Error>>(e: E) -> CliError {
@@ -232,6 +257,9 @@ struct RigRun {
     agents: Vec<AgentReport>,
     estimator: EstimatorReport,
     observed: u64,
+    /// This process's resident set (estimator host, boards, observer) 2 s after the start
+    /// and at the end of the run [kB] (None where /proc cannot be read).
+    rss_kb: Option<(u64, u64)>,
 }
 
 /// Runs the estimator host (the hub) and the joint boards for `duration`; an observer
@@ -282,9 +310,15 @@ fn run_rig(
             .await?;
         let pb = crate::progress::bar(duration.as_secs().max(1), label);
         let t0 = Instant::now();
+        let (mut rss_start, mut rss_end) = (None, None);
         while rig.boards_running() {
             tokio::time::sleep(Duration::from_millis(200)).await;
             pb.set_position(t0.elapsed().as_secs().min(duration.as_secs()));
+            let rss = resident_kb(std::process::id()).map(|(rss, _)| rss);
+            if rss_start.is_none() && t0.elapsed() >= Duration::from_secs(2) {
+                rss_start = rss;
+            }
+            rss_end = rss.or(rss_end);
         }
         pb.finish_and_clear();
         // The last samples arrive before the estimator stops.
@@ -293,6 +327,7 @@ fn run_rig(
             agents: reports.joints.into_iter().map(|(_, r)| r).collect(),
             estimator: reports.estimator,
             observed: observed.load(Ordering::Relaxed),
+            rss_kb: rss_start.zip(rss_end),
         })
     })
 }
@@ -439,6 +474,8 @@ fn throughput(a: &ThroughputArgs) -> Result<(), CliError> {
         age_us: e.age_us,
         latency_us: e.latency_us,
         duration_s: duration.as_secs_f64(),
+        rss_start_kb: r.rss_kb.map(|r| r.0),
+        rss_end_kb: r.rss_kb.map(|r| r.1),
     };
     if a.json {
         println!("{}", serde_json::to_string_pretty(&report).map_err(io)?);
@@ -460,6 +497,153 @@ fn throughput(a: &ThroughputArgs) -> Result<(), CliError> {
             report.age_us.p99,
             report.latency_us.p50,
             report.latency_us.p99
+        );
+        if let (Some(a), Some(b)) = (report.rss_start_kb, report.rss_end_kb) {
+            println!(
+                "memory of this process (estimator host and load generator): {:.1} MB after 2 s, {:.1} MB at the end",
+                a as f64 / 1024.0,
+                b as f64 / 1024.0
+            );
+        }
+    }
+    Ok(())
+}
+
+/// A process's resident set and its peak [kB], from `/proc/<pid>/status` (Linux).
+fn resident_kb(pid: u32) -> Option<(u64, u64)> {
+    let status = std::fs::read_to_string(format!("/proc/{pid}/status")).ok()?;
+    let field = |name: &str| {
+        status
+            .lines()
+            .find_map(|l| l.strip_prefix(name))
+            .and_then(|v| v.trim().trim_end_matches("kB").trim().parse::<u64>().ok())
+    };
+    Some((field("VmRSS:")?, field("VmHWM:")?))
+}
+
+#[derive(Debug, Serialize)]
+struct FootprintReport {
+    joints: usize,
+    rate_hz: f64,
+    duration_s: f64,
+    /// Resident set 2 s after the start, at the last reading, and the peak [kB].
+    rss_start_kb: u64,
+    rss_end_kb: u64,
+    rss_peak_kb: u64,
+    /// Samples the estimator host received from the agent.
+    samples_received: u64,
+}
+
+fn footprint(a: &FootprintArgs) -> Result<(), CliError> {
+    let cfg = crate::config::load_or_parallel(&a.config)?;
+    let exe = std::env::current_exe()?.with_file_name("rig-joint");
+    if !exe.exists() {
+        return Err(CliError::Unsupported(format!(
+            "{} not found: the joint agent is measured as its own binary; build it with \
+             `cargo build --release -p rig-joint`",
+            exe.display()
+        )));
+    }
+    // The agent reads its config from a file: the one given, or the built-in example.
+    let example;
+    let config_path = match &a.config {
+        Some(p) => p.clone(),
+        None => {
+            example =
+                std::env::temp_dir().join(format!("rig-footprint-{}.toml", std::process::id()));
+            std::fs::write(&example, rig_config::examples::PARALLEL)?;
+            example.clone()
+        }
+    };
+    let joints: Vec<String> = cfg.joints.iter().map(|j| j.name.clone()).collect();
+    eprintln!(
+        "rig bench footprint: rig-joint serving {} ({} Hz) against an estimator host, {:.0} s",
+        joints.join(","),
+        cfg.rate_hz,
+        a.duration.as_secs_f64()
+    );
+    let rt = tokio_runtime(Some(2))?;
+    let result = rt.block_on(async {
+        let endpoint = free_loopback_endpoint()?;
+        let hub = Hub::start(
+            &cfg,
+            vec![endpoint.clone()],
+            vec![],
+            Duration::from_secs(10),
+        )
+        .await?;
+        let mut child = std::process::Command::new(&exe)
+            .arg("--config")
+            .arg(&config_path)
+            .arg("--joint")
+            .arg(joints.join(","))
+            .args(["--connect", &endpoint])
+            .arg("--duration")
+            .arg(format!("{}", a.duration.as_secs_f64()))
+            .stdout(std::process::Stdio::null())
+            .stderr(std::process::Stdio::piped())
+            .spawn()?;
+        let pid = child.id();
+        let pb = crate::progress::bar(a.duration.as_secs().max(1), "joint agent running");
+        let t0 = Instant::now();
+        let (mut start, mut end, mut peak) = (None, 0, 0);
+        let exited = loop {
+            if let Some(status) = child.try_wait()? {
+                break status;
+            }
+            if let Some((rss, hwm)) = resident_kb(pid) {
+                if start.is_none() && t0.elapsed() >= Duration::from_secs(2) {
+                    start = Some(rss);
+                }
+                (end, peak) = (rss, hwm);
+            }
+            pb.set_position(t0.elapsed().as_secs().min(a.duration.as_secs()));
+            // Often enough that the host stops soon after the agent (before it calls the
+            // joints stale), cheap enough not to load the machine.
+            tokio::time::sleep(Duration::from_millis(100)).await;
+        };
+        pb.finish_and_clear();
+        let estimator = hub.stop().await?;
+        if !exited.success() {
+            let mut err = String::new();
+            if let Some(mut e) = child.stderr.take() {
+                let _ = std::io::Read::read_to_string(&mut e, &mut err);
+            }
+            return Err(CliError::Rig(format!(
+                "rig-joint ended with {exited}: {err}"
+            )));
+        }
+        let Some(start) = start else {
+            return Err(CliError::Rig(
+                "no reading of the agent's memory (is /proc mounted? Linux only)".into(),
+            ));
+        };
+        Ok(FootprintReport {
+            joints: joints.len(),
+            rate_hz: cfg.rate_hz,
+            duration_s: a.duration.as_secs_f64(),
+            rss_start_kb: start,
+            rss_end_kb: end,
+            rss_peak_kb: peak,
+            samples_received: estimator.core.samples,
+        })
+    });
+    if a.config.is_none() {
+        let _ = std::fs::remove_file(&config_path);
+    }
+    let report = result?;
+    if a.json {
+        println!("{}", serde_json::to_string_pretty(&report).map_err(io)?);
+    } else {
+        println!(
+            "rig-joint, {} joints × {} Hz for {:.0} s: resident {:.1} MB after 2 s, {:.1} MB at the end, peak {:.1} MB; {} samples received",
+            report.joints,
+            report.rate_hz,
+            report.duration_s,
+            report.rss_start_kb as f64 / 1024.0,
+            report.rss_end_kb as f64 / 1024.0,
+            report.rss_peak_kb as f64 / 1024.0,
+            report.samples_received
         );
     }
     Ok(())

@@ -107,6 +107,15 @@ impl Hub {
         })
     }
 
+    /// Stops the estimator and closes the launcher's session (when no roles were started
+    /// through [`Hub::start_roles`]); the estimator's report.
+    pub async fn stop(self) -> Result<EstimatorReport, CliError> {
+        let _ = self.stop_estimator.send(true);
+        let report = self.estimator.await??;
+        let _ = self.session.close().await;
+        Ok(report)
+    }
+
     /// Starts the allocator (if `allocator`) and one joint agent per board (the joints each
     /// serves), all on `backend`, and waits for their tokens. `duration`: how long the
     /// agents sample (None: until [`Launched::stop`]).
