@@ -229,6 +229,15 @@ fn zenoh_endpoints_are_checked() {
         "listen = [\"127.0.0.1:7447\"]",
     );
     assert_eq!(e[0].field, "zenoh.listen[0]");
+    // A transport this build does not have is refused when the config is read, not when a
+    // role starts.
+    let e = errors_after(
+        "parallel.toml",
+        "listen = []",
+        "listen = [\"tls/127.0.0.1:7447\"]",
+    );
+    assert_eq!(e[0].field, "zenoh.listen[0]");
+    assert!(e[0].message.contains("built with"), "{}", e[0].message);
 }
 
 #[test]

@@ -1032,10 +1032,19 @@ fn zenoh(c: &mut Collector<'_>, raw: Option<&RawZenoh>) -> Option<ZenohConfig> {
     })
 }
 
-/// A Zenoh endpoint: `<protocol>/<address>`, e.g. `tcp/127.0.0.1:7447`.
+/// The Zenoh transports the rig is built with (the workspace's `zenoh` features).
+pub const TRANSPORTS: [&str; 2] = ["tcp", "udp"];
+
+/// A Zenoh endpoint: `<protocol>/<address>`, e.g. `tcp/127.0.0.1:7447`, on a transport the
+/// rig is built with ([`TRANSPORTS`]).
 pub fn check_endpoint(e: &str) -> Result<(), String> {
     const PROTOS: [&str; 6] = ["tcp", "udp", "tls", "quic", "ws", "unixsock-stream"];
     match e.split_once('/') {
+        Some((proto, _)) if PROTOS.contains(&proto) && !TRANSPORTS.contains(&proto) => {
+            Err(format!(
+                "\"{e}\": the rig's Zenoh is built with {TRANSPORTS:?} only, so a {proto} endpoint would fail when the role starts; use tcp/<host>:<port> (TLS and access control: docs/SECURITY.md)"
+            ))
+        }
         Some((proto, addr)) if PROTOS.contains(&proto) && !addr.is_empty() => {
             let has_port = addr
                 .rsplit_once(':')

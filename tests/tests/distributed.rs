@@ -931,7 +931,8 @@ fn summary_residual_rms(summary: &str, joint: &str) -> f64 {
 }
 
 #[test]
-fn a_flood_of_malformed_commands_and_goals_is_counted_in_full_and_said_in_a_few_lines() {
+fn malformed_floods_are_counted_in_full_but_said_in_few_lines_and_a_command_off_the_clock_is_refused()
+ {
     // A peer sends 1 000 malformed commands to a joint and 1 000 malformed goals to the
     // allocator: each is dropped and counted; the log says the 1st, 10th, 100th and 1000th,
     // not a line each (a flood must not fill the log), and the final report has the count.
@@ -966,6 +967,14 @@ fn a_flood_of_malformed_commands_and_goals_is_counted_in_full_and_said_in_a_few_
     const FLOOD: usize = 1000;
     rt().block_on(async {
         let z = session(&hub).await;
+        let status = z
+            .declare_subscriber("rig/parallel/joint/j1/status")
+            .await
+            .unwrap();
+        let results = z
+            .declare_subscriber("rig/parallel/allocation/result")
+            .await
+            .unwrap();
         for i in 0..FLOOD {
             // Empty, truncated, a wrong version, random: never a valid message.
             let junk: Vec<u8> = (0..i % 40).map(|b| (b * 37 + i) as u8).collect();
@@ -979,7 +988,54 @@ fn a_flood_of_malformed_commands_and_goals_is_counted_in_full_and_said_in_a_few_
                     .unwrap();
             }
         }
-        tokio::time::sleep(Duration::from_secs(1)).await;
+        // A well-formed command stamped an hour ahead (a clock that is off, or a forged
+        // stamp): refused by the joint's guard.
+        let ahead = JointCommand {
+            joint: 0,
+            seq: 1,
+            t_ns: now_ns() + 3_600_000_000_000,
+            motor_goal_rad: None,
+            pivot_goal_m: Some(0.012),
+            stiffness_motor_goal_rad: None,
+            torque_enable: true,
+        };
+        z.put("rig/parallel/joint/j1/command", encode(&ahead).unwrap())
+            .await
+            .unwrap();
+        // A valid goal at a pose out of reach: answered (infeasible), nothing commanded.
+        let goal = AllocationRequest {
+            id: 77,
+            x_m: 5.0,
+            y_m: 5.0,
+            target: AllocationTarget::Percent(50.0),
+        };
+        z.put("rig/parallel/stiffness/goal", encode(&goal).unwrap())
+            .congestion_control(rig_runtime::zenoh::qos::CongestionControl::Block)
+            .await
+            .unwrap();
+        // Each receiver handles its messages in order: once the refusal and the answer are
+        // out, every malformed message before them has been counted.
+        let (mut refused, mut answered) = (false, false);
+        let until = Instant::now() + Duration::from_secs(20);
+        while !(refused && answered) && Instant::now() < until {
+            tokio::select! {
+                Ok(s) = status.recv_async() => {
+                    if let Ok(st) = decode::<JointStatus>(&s.payload().to_bytes()) {
+                        refused |= st.state == JointState::Rejected && st.text.contains("stamped");
+                    }
+                }
+                Ok(r) = results.recv_async() => {
+                    if let Ok(r) = decode::<AllocationResult>(&r.payload().to_bytes()) {
+                        answered |= r.id == 77 && !r.feasible;
+                    }
+                }
+                _ = tokio::time::sleep(Duration::from_millis(100)) => {}
+            }
+        }
+        assert!(
+            refused && answered,
+            "refused {refused}, answered {answered}"
+        );
     });
     for p in [&joint, &alloc] {
         let stopped = Command::new("kill")
@@ -1011,5 +1067,95 @@ fn a_flood_of_malformed_commands_and_goals_is_counted_in_full_and_said_in_a_few_
             .unwrap_or_else(|| panic!("no malformed count in:\n{text}"));
         assert_eq!(counted, FLOOD as u64, "{text}");
     }
+    let text = std::fs::read_to_string(&joint_log).unwrap();
+    assert!(
+        text.contains("0 commands accepted, 1 rejected"),
+        "the command stamped an hour ahead is refused:\n{text}"
+    );
+    std::fs::remove_dir_all(&dir).ok();
+}
+
+#[test]
+fn commands_that_reach_no_joint_are_reported_not_sent_silently() {
+    // The allocator answers a query while no joint agent is linked to it: its four commands
+    // go nowhere, and it says so (per joint, at the 1st, 10th…) and counts them; once the
+    // joints are up, a second answer's commands are matched.
+    let _one_at_a_time = serial();
+    let hub = format!("tcp/127.0.0.1:{}", free_port());
+    let dir = std::env::temp_dir().join(format!("rig-unmatched-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let log = dir.join("allocator.log");
+    let cfg = config().to_string_lossy().into_owned();
+    let mut alloc = common::spawn_logged(
+        "rig",
+        &s(&["allocator", "--config", &cfg, "--listen", &hub]),
+        &log,
+    );
+    wait_alive(&hub, &[alive("allocator", "0")]);
+    async fn ask(z: &rig_runtime::zenoh::Session, id: u64) {
+        let req = AllocationRequest {
+            id,
+            x_m: 0.075,
+            y_m: 0.2,
+            target: AllocationTarget::Percent(25.0 + id as f64),
+        };
+        let replies = z
+            .get("rig/parallel/allocate")
+            .payload(encode(&req).unwrap())
+            .await
+            .unwrap();
+        let reply = tokio::time::timeout(Duration::from_secs(5), replies.recv_async())
+            .await
+            .unwrap()
+            .unwrap();
+        let r = decode::<AllocationResult>(&reply.result().unwrap().payload().to_bytes());
+        assert!(r.unwrap().feasible);
+    }
+    let _joints = rt().block_on(async {
+        let z = session(&hub).await;
+        ask(&z, 1).await;
+        let joints: Vec<Proc> = ["j1", "j2", "j3", "j4"]
+            .iter()
+            .map(|j| joint(j, &hub, now_ns()))
+            .collect();
+        let alive_joints: Vec<String> = ["j1", "j2", "j3", "j4"]
+            .iter()
+            .map(|j| alive("joint", j))
+            .collect();
+        common::wait_alive_on(&z, &alive_joints).await;
+        ask(&z, 2).await;
+        tokio::time::sleep(Duration::from_millis(300)).await;
+        joints
+    });
+    let stopped = Command::new("kill")
+        .args(["-INT", &alloc.0.id().to_string()])
+        .status()
+        .unwrap();
+    assert!(stopped.success());
+    assert!(alloc.0.wait().unwrap().success());
+    let text = std::fs::read_to_string(&log).unwrap();
+    for j in ["j1", "j2", "j3", "j4"] {
+        let said = text
+            .lines()
+            .filter(|l| l.contains(&format!("no subscriber for {j}'s commands")))
+            .count();
+        // The 1st (and the 10th, if the joints took a second of heartbeats to come up).
+        assert!((1..=2).contains(&said), "{j}:\n{text}");
+    }
+    // "N commands (U to no subscriber)": the first answer's four and the heartbeats that
+    // repeat them until the joints were up went nowhere; the second answer's were matched.
+    let (sent, unmatched): (u64, u64) = text
+        .lines()
+        .find_map(|l| {
+            let (_, rest) = l.split_once(" goals, ")?;
+            let (sent, rest) = rest.split_once(" commands (")?;
+            let (unmatched, _) = rest.split_once(" to no subscriber")?;
+            Some((sent.parse().ok()?, unmatched.parse().ok()?))
+        })
+        .unwrap_or_else(|| panic!("no command counts in:\n{text}"));
+    assert!(
+        unmatched >= 4 && sent >= unmatched + 4,
+        "{sent} sent, {unmatched} to no subscriber:\n{text}"
+    );
     std::fs::remove_dir_all(&dir).ok();
 }

@@ -25,6 +25,9 @@ pub struct AllocatorReport {
     pub requests: u64,
     pub goals: u64,
     pub commands: u64,
+    /// Commands sent while no subscriber of the joint's command key was known to this
+    /// host: its agent was down, or not linked to this machine (they went nowhere).
+    pub unmatched: u64,
     pub malformed: u64,
 }
 
@@ -67,6 +70,8 @@ pub async fn run(
     let mut report = AllocatorReport::default();
     // Infeasible goals are answered in the result; the log says the 1st, 10th, 100th…
     let mut infeasible = rig_runtime::LogBudget::default();
+    // Per joint: commands sent to nobody, said at the 1st, 10th, 100th…
+    let mut unmatched = vec![rig_runtime::LogBudget::default(); cfg.joints.len()];
     let mut heartbeat = tokio::time::interval(Duration::from_millis(100));
     heartbeat.set_missed_tick_behavior(tokio::time::MissedTickBehavior::Skip);
     let deadline = opts.duration.map(|d| tokio::time::Instant::now() + d);
@@ -151,9 +156,26 @@ pub async fn run(
             }
         };
         for c in cmds {
-            if let (Some(p), Ok(bytes)) = (cmd_pubs.get(c.joint as usize), encode(&c)) {
+            let j = c.joint as usize;
+            if let (Some(p), Ok(bytes)) = (cmd_pubs.get(j), encode(&c)) {
+                // Zenoh knows whether any subscriber matches: a command with none goes
+                // nowhere, and a lab must hear so rather than see a pivot that never moves.
+                let matched = p.matching_status().await.is_ok_and(|m| m.matching());
                 p.put(bytes).await.map_err(z)?;
                 report.commands += 1;
+                if !matched {
+                    report.unmatched += 1;
+                    if let (Some(n), Some(joint)) = (
+                        unmatched.get_mut(j).and_then(|b| b.count()),
+                        cfg.joints.get(j),
+                    ) {
+                        eprintln!(
+                            "rig allocator: no subscriber for {}'s commands ({}): its agent is down or not linked to this machine, so the command went nowhere ({n} so far). Peers forward only to peers they are linked to: give the joint's machine a --connect to this one, or run a router (README, \"The rig over Zenoh\")",
+                            joint.name,
+                            p.key_expr()
+                        );
+                    }
+                }
             }
         }
     }

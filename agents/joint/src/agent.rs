@@ -111,6 +111,7 @@ fn guard_limits(cfg: &RigConfig, j: usize) -> GuardLimits {
         actuator_max: max,
         actuator_rate: l.stiffness_rate,
         watchdog_s: l.watchdog_s,
+        max_clock_offset_s: cfg.clock.max_offset_s,
         actuator_name: name,
         actuator_unit: unit,
         actuator_scale: scale,

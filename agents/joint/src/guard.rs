@@ -8,6 +8,11 @@
 //!   configured rate (the servo's profile). A new goal that changes the current one faster
 //!   than that rate, while the actuator is still on its way, is rejected: a sender can retarget
 //!   once the last goal is reached, or slowly, not flip goals faster than the joint can follow.
+//! - **Freshness**: a command stamped further than the rig's clock bound (`[clock]
+//!   max_offset_ms`, 100 ms by default) from the joint's clock is rejected — a command
+//!   captured and sent again later, held up in a queue, or from a machine whose clock is off;
+//!   within the bound, a command identical in `seq` and stamp to one already accepted is a
+//!   replay and is rejected too.
 //! - **Watchdog**: when no valid command arrives for `watchdog_s`, the goal becomes the
 //!   actuator's present position (it stops where it is) and the state becomes safe-hold until
 //!   the next valid command.
@@ -25,6 +30,8 @@ pub struct GuardLimits {
     /// Fastest actuator motion [m/s] or [rad/s].
     pub actuator_rate: f64,
     pub watchdog_s: f64,
+    /// How far a command's stamp may be from the joint's clock [s] (`[clock] max_offset_ms`).
+    pub max_clock_offset_s: f64,
     /// Name and unit of the actuator for messages, e.g. ("pivot", "mm", 1e3).
     pub actuator_name: &'static str,
     pub actuator_unit: &'static str,
@@ -53,7 +60,13 @@ pub struct JointGuard {
     last_valid_ns: Option<u64>,
     last_goal_ns: Option<u64>,
     state: JointState,
+    /// (seq, stamp) of the commands accepted within the clock bound, oldest first.
+    recent: std::collections::VecDeque<(u64, u64)>,
 }
+
+/// The most accepted commands remembered for replay detection (a sender at 1 kHz fills the
+/// 100 ms bound with 100).
+const RECENT: usize = 512;
 
 impl JointGuard {
     /// A guard for joint `joint`, its actuator at `actuator_now`.
@@ -65,6 +78,7 @@ impl JointGuard {
             last_valid_ns: None,
             last_goal_ns: None,
             state: JointState::Ok,
+            recent: std::collections::VecDeque::new(),
         }
     }
 
@@ -93,6 +107,21 @@ impl JointGuard {
             return Verdict::Rejected(format!(
                 "command for joint {} reached joint {}",
                 cmd.joint, self.joint
+            ));
+        }
+        let offset_s = (cmd.t_ns as f64 - now_ns as f64) * 1e-9;
+        if offset_s.abs() > l.max_clock_offset_s {
+            return Verdict::Rejected(format!(
+                "command seq {} stamped {:+.1} ms from this joint's clock (bound ±{:.0} ms, [clock] max_offset_ms): a late or replayed command, or a clock that is off (run chrony or PTP on every machine)",
+                cmd.seq,
+                offset_s * 1e3,
+                l.max_clock_offset_s * 1e3
+            ));
+        }
+        if self.recent.contains(&(cmd.seq, cmd.t_ns)) {
+            return Verdict::Rejected(format!(
+                "command seq {} stamped {} was already accepted: a replay",
+                cmd.seq, cmd.t_ns
             ));
         }
         if let Some(m) = cmd.motor_goal_rad
@@ -135,11 +164,27 @@ impl JointGuard {
         }
         self.last_valid_ns = Some(now_ns);
         self.state = JointState::Ok;
+        self.remember(cmd, now_ns);
         Verdict::Accepted {
             motor_goal: cmd.motor_goal_rad,
             actuator_goal: goal,
             torque_enable: cmd.torque_enable,
         }
+    }
+
+    /// Keeps an accepted command's (seq, stamp) while a copy of it could still pass the
+    /// clock check.
+    fn remember(&mut self, cmd: &JointCommand, now_ns: u64) {
+        let bound_ns = self.limits.max_clock_offset_s * 1e9;
+        while let Some(&(_, t)) = self.recent.front() {
+            let expired = (now_ns as f64 - t as f64) > bound_ns;
+            if expired || self.recent.len() >= RECENT {
+                self.recent.pop_front();
+            } else {
+                break;
+            }
+        }
+        self.recent.push_back((cmd.seq, cmd.t_ns));
     }
 
     /// Periodic check. Returns the new state when the watchdog fires (goal := present
@@ -168,16 +213,20 @@ mod tests {
             actuator_max: 0.018,
             actuator_rate: 0.02,
             watchdog_s: 0.5,
+            // These tests stamp every command at 1 ns; the clock check has its own test.
+            max_clock_offset_s: f64::INFINITY,
             actuator_name: "pivot",
             actuator_unit: "mm",
             actuator_scale: 1e3,
         }
     }
 
+    /// A command with a fresh sequence number (a repeated one would be a replay).
     fn cmd(pivot: Option<f64>, motor: Option<f64>) -> JointCommand {
+        static SEQ: std::sync::atomic::AtomicU64 = std::sync::atomic::AtomicU64::new(1);
         JointCommand {
             joint: 0,
-            seq: 1,
+            seq: SEQ.fetch_add(1, std::sync::atomic::Ordering::Relaxed),
             t_ns: 1,
             motor_goal_rad: motor,
             pivot_goal_m: pivot,
@@ -233,6 +282,57 @@ mod tests {
             g.on_command(&cmd(Some(0.0), None), 2 * S, 0.0151),
             Verdict::Accepted { .. }
         ));
+    }
+
+    #[test]
+    fn a_command_stamped_off_the_clock_bound_or_seen_before_is_rejected() {
+        let mut g = JointGuard::new(
+            0,
+            GuardLimits {
+                max_clock_offset_s: 0.1,
+                ..limits()
+            },
+            0.009,
+        );
+        let at = |seq: u64, t_ns: u64| JointCommand {
+            seq,
+            t_ns,
+            ..cmd(Some(0.009), None)
+        };
+        assert!(matches!(
+            g.on_command(&at(1, 10 * S - S / 20), 10 * S, 0.009),
+            Verdict::Accepted { .. }
+        ));
+        // The same command again, 50 ms later: within the bound, but seen before.
+        match g.on_command(&at(1, 10 * S - S / 20), 10 * S + S / 20, 0.009) {
+            Verdict::Rejected(t) => assert!(t.contains("replay"), "{t}"),
+            v => panic!("{v:?}"),
+        }
+        // Later still it is off the bound: stamped 150 ms in the past.
+        match g.on_command(&at(1, 10 * S - S / 20), 10 * S + S / 10, 0.009) {
+            Verdict::Rejected(t) => {
+                assert!(t.contains("-150.0 ms") && t.contains("±100 ms"), "{t}")
+            }
+            v => panic!("{v:?}"),
+        }
+        // From the future (a clock ahead) is refused as well; a fresh one passes.
+        assert!(matches!(
+            g.on_command(&at(2, 12 * S), 11 * S, 0.009),
+            Verdict::Rejected(_)
+        ));
+        assert!(matches!(
+            g.on_command(&at(2, 11 * S), 11 * S, 0.009),
+            Verdict::Accepted { .. }
+        ));
+        // What is remembered stays within the bound's worth of commands.
+        for k in 0..5000u64 {
+            let t = 20 * S + k * S / 1000;
+            assert!(matches!(
+                g.on_command(&at(100 + k, t), t, 0.009),
+                Verdict::Accepted { .. }
+            ));
+        }
+        assert!(g.recent.len() <= 102, "{}", g.recent.len());
     }
 
     #[test]

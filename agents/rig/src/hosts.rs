@@ -63,8 +63,8 @@ pub fn allocator(a: &HostArgs) -> Result<(), CliError> {
         ctrl_c(),
     ))?;
     eprintln!(
-        "rig allocator: {} requests, {} goals, {} commands, {} malformed",
-        r.requests, r.goals, r.commands, r.malformed
+        "rig allocator: {} requests, {} goals, {} commands ({} to no subscriber), {} malformed",
+        r.requests, r.goals, r.commands, r.unmatched, r.malformed
     );
     Ok(())
 }
