@@ -571,7 +571,7 @@ fn bench_footprint_reads_the_joint_agents_memory_while_it_serves_its_joints() {
 fn bench_latency_and_throughput_report_consistent_figures() {
     let _one_at_a_time = serial();
     // Latency: 4 joints × 1 kHz for 3 s after 300 timed round trips.
-    let v = bench_json(&["latency", "--duration", "3", "--pings", "300"]);
+    let v = bench_json(&["latency", "--duration", "3", "--pings", "300", "--sweep"]);
     let (rtt50, rtt99) = (
         u(&v, &["zenoh_rtt_us", "p50"]),
         u(&v, &["zenoh_rtt_us", "p99"]),
@@ -596,6 +596,22 @@ fn bench_latency_and_throughput_report_consistent_figures() {
     assert!(
         observed * 100 >= (sent * 5 / 4) * 95,
         "{observed} observed: {v}"
+    );
+    // The sweep: four samples' bytes, 1 KiB, 64 KiB; moving 64 KiB takes longer than a sample.
+    let sweep = v["sweep"].as_array().unwrap();
+    let sizes: Vec<u64> = sweep
+        .iter()
+        .map(|p| p["payload_bytes"].as_u64().unwrap())
+        .collect();
+    assert_eq!(sizes[1..], [1024, 65536], "{v}");
+    assert!(
+        sizes[0] > 4 * 8 && sizes[0] < 1024,
+        "four samples' bytes: {v}"
+    );
+    let big = sweep[2]["zenoh_rtt_us"]["p50"].as_u64().unwrap();
+    assert!(
+        big >= rtt50,
+        "64 KiB p50 {big} µs against a sample's {rtt50} µs: {v}"
     );
 
     // Throughput: 8 joints on one board, 2 s.

@@ -75,6 +75,11 @@ struct LatencyArgs {
     /// Round trips timed for the raw Zenoh figure (after 500 warm-up ones)
     #[arg(long, default_value_t = 10_000)]
     pings: usize,
+    /// Also time raw round trips of other payload sizes — four samples' bytes (what one
+    /// message for a board of four joints would carry), 1 KiB, 64 KiB — as the peers' tables
+    /// do (dora, zenoh's z_ping)
+    #[arg(long)]
+    sweep: bool,
     /// Print one JSON object instead of the table
     #[arg(long)]
     json: bool,
@@ -147,6 +152,15 @@ struct LatencyReport {
     estimates_observed: u64,
     /// Ticks the agents skipped because their timer woke too late.
     skipped_ticks: u64,
+    /// With --sweep: the raw round trip at each payload size.
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    sweep: Vec<SweepPoint>,
+}
+
+#[derive(Debug, Serialize)]
+struct SweepPoint {
+    payload_bytes: usize,
+    zenoh_rtt_us: LatencySummary,
 }
 
 #[derive(Debug, Serialize)]
@@ -357,7 +371,18 @@ fn latency(a: &LatencyArgs) -> Result<(), CliError> {
         cfg.rate_hz,
         duration.as_secs_f64()
     );
+    let sample_bytes = payload.len();
     let rtt = zenoh_rtt(&cfg, a.pings, payload)?;
+    let mut sweep = Vec::new();
+    if a.sweep {
+        for size in [4 * sample_bytes, 1024, 64 * 1024] {
+            let rtt = zenoh_rtt(&cfg, a.pings, vec![0x5a; size])?;
+            sweep.push(SweepPoint {
+                payload_bytes: size,
+                zenoh_rtt_us: LatencySummary::of(rtt),
+            });
+        }
+    }
     let names = cfg.joints.iter().map(|j| j.name.clone());
     let boards = match a.boards {
         Boards::One => vec![names.collect()],
@@ -380,6 +405,7 @@ fn latency(a: &LatencyArgs) -> Result<(), CliError> {
         duration_s: duration.as_secs_f64(),
         estimates_observed: r.observed,
         skipped_ticks: r.agents.iter().map(|a| a.skipped_ticks).sum(),
+        sweep,
     };
     if a.json {
         println!("{}", serde_json::to_string_pretty(&report).map_err(io)?);
@@ -409,6 +435,12 @@ fn latency(a: &LatencyArgs) -> Result<(), CliError> {
             "samples sent {}, lost {}; {} estimates observed; {} ticks skipped by the agents",
             report.sent, report.lost, report.estimates_observed, report.skipped_ticks
         );
+        for p in &report.sweep {
+            println!(
+                "raw round trip, {:>6} B   p50 {:>6} µs   p99 {:>6} µs",
+                p.payload_bytes, p.zenoh_rtt_us.p50, p.zenoh_rtt_us.p99
+            );
+        }
     }
     Ok(())
 }
