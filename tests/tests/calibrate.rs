@@ -19,9 +19,7 @@ use serde_json::Value;
 const NOISE_NM: f64 = 0.003;
 
 fn scratch(name: &str) -> PathBuf {
-    let d = std::env::temp_dir().join(format!("rig-calibrate-{}", std::process::id()));
-    std::fs::create_dir_all(&d).unwrap();
-    d.join(name)
+    common::test_dir("calibrate").join(name)
 }
 
 /// A simulated bench run at pivot `d_mm` (20 s at 1 kHz, 14-bit encoder, 3 mN·m torque noise).

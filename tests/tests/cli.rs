@@ -109,8 +109,7 @@ fn a_stiffness_goal_that_is_not_a_percentage_of_the_range_is_refused() {
 
 #[test]
 fn bytes_that_are_no_recording_are_an_error_and_a_report_never_makes_directories() {
-    let dir = std::env::temp_dir().join(format!("rig-cli-files-{}", std::process::id()));
-    std::fs::create_dir_all(&dir).unwrap();
+    let dir = common::test_dir("cli-files");
     // Random bytes are not a recording: refused with status 1, naming the file.
     let junk = dir.join("junk.mcap");
     let bytes: Vec<u8> = (0..300u32)

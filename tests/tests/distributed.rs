@@ -327,8 +327,7 @@ fn a_python_client_subscribes_and_decodes_a_sample() {
 fn a_recording_replays_offline_to_the_same_estimates_and_survives_a_killed_recorder() {
     let _one_at_a_time = serial();
     let hub = format!("tcp/127.0.0.1:{}", free_port());
-    let dir = std::env::temp_dir().join(format!("rig-record-{}", std::process::id()));
-    std::fs::create_dir_all(&dir).unwrap();
+    let dir = common::test_dir("record");
     let (full, killed) = (dir.join("full.mcap"), dir.join("killed.mcap"));
     let _est = host("estimator", &hub);
     wait_alive(&hub, &[alive("estimator", "0")]);
@@ -382,15 +381,7 @@ fn a_recording_replays_offline_to_the_same_estimates_and_survives_a_killed_recor
     drop(joints); // the joints stop before the recorder does
     std::thread::sleep(Duration::from_millis(300));
     // Ctrl-C ends a recording cleanly (footer and index written).
-    let interrupted = Command::new("kill")
-        .args(["-INT", &rec.0.id().to_string()])
-        .status()
-        .unwrap();
-    assert!(interrupted.success());
-    assert!(
-        rec.0.wait().unwrap().success(),
-        "the recorder ends cleanly on Ctrl-C"
-    );
+    common::interrupt_and_wait(&mut rec, "the recorder");
 
     let replay = |file: &Path| {
         let o = Command::new(bin("rig"))
@@ -954,8 +945,7 @@ fn malformed_floods_are_counted_in_full_but_said_in_few_lines_and_a_command_off_
     // not a line each (a flood must not fill the log), and the final report has the count.
     let _one_at_a_time = serial();
     let hub = format!("tcp/127.0.0.1:{}", free_port());
-    let dir = std::env::temp_dir().join(format!("rig-flood-{}", std::process::id()));
-    std::fs::create_dir_all(&dir).unwrap();
+    let dir = common::test_dir("flood");
     let (alloc_log, joint_log) = (dir.join("allocator.log"), dir.join("joint.log"));
     let cfg = config().to_string_lossy().into_owned();
     let alloc = common::spawn_logged(
@@ -991,17 +981,34 @@ fn malformed_floods_are_counted_in_full_but_said_in_few_lines_and_a_command_off_
             .declare_subscriber("rig/parallel/allocation/result")
             .await
             .unwrap();
+        let mut pubs = Vec::new();
+        for key in [
+            "rig/parallel/joint/j1/command",
+            "rig/parallel/stiffness/goal",
+        ] {
+            pubs.push(
+                z.declare_publisher(key)
+                    .congestion_control(rig_runtime::zenoh::qos::CongestionControl::Block)
+                    .await
+                    .unwrap(),
+            );
+        }
+        // A fresh peer reaches the joint only once it is linked to it (gossip, then a direct
+        // link; peers do not forward for others): before that, puts go nowhere — on a loaded
+        // CI machine the first 125 of an unpaced 1 000 did. Wait until Zenoh knows a
+        // subscriber for both keys.
+        let until = Instant::now() + Duration::from_secs(10);
+        for p in &pubs {
+            while !p.matching_status().await.unwrap().matching() {
+                assert!(Instant::now() < until, "no route to {}", p.key_expr());
+                tokio::time::sleep(Duration::from_millis(20)).await;
+            }
+        }
         for i in 0..FLOOD {
             // Empty, truncated, a wrong version, random: never a valid message.
             let junk: Vec<u8> = (0..i % 40).map(|b| (b * 37 + i) as u8).collect();
-            for key in [
-                "rig/parallel/joint/j1/command",
-                "rig/parallel/stiffness/goal",
-            ] {
-                z.put(key, junk.clone())
-                    .congestion_control(rig_runtime::zenoh::qos::CongestionControl::Block)
-                    .await
-                    .unwrap();
+            for p in &pubs {
+                p.put(junk.clone()).await.unwrap();
             }
         }
         // A well-formed command stamped an hour ahead (a clock that is off, or a forged
@@ -1053,13 +1060,9 @@ fn malformed_floods_are_counted_in_full_but_said_in_few_lines_and_a_command_off_
             "refused {refused}, answered {answered}"
         );
     });
-    for p in [&joint, &alloc] {
-        let stopped = Command::new("kill")
-            .args(["-INT", &p.0.id().to_string()])
-            .status()
-            .unwrap();
-        assert!(stopped.success());
-    }
+    // Both stop at once (as a lab's Ctrl-C would), then each must end cleanly.
+    common::interrupt(&joint);
+    common::interrupt(&alloc);
     let (mut joint, mut alloc) = (joint, alloc);
     assert!(joint.0.wait().unwrap().success(), "the joint ends cleanly");
     assert!(
@@ -1098,8 +1101,7 @@ fn commands_that_reach_no_joint_are_reported_not_sent_silently() {
     // joints are up, a second answer's commands are matched.
     let _one_at_a_time = serial();
     let hub = format!("tcp/127.0.0.1:{}", free_port());
-    let dir = std::env::temp_dir().join(format!("rig-unmatched-{}", std::process::id()));
-    std::fs::create_dir_all(&dir).unwrap();
+    let dir = common::test_dir("unmatched");
     let log = dir.join("allocator.log");
     let cfg = config().to_string_lossy().into_owned();
     let mut alloc = common::spawn_logged(
@@ -1143,12 +1145,7 @@ fn commands_that_reach_no_joint_are_reported_not_sent_silently() {
         tokio::time::sleep(Duration::from_millis(300)).await;
         joints
     });
-    let stopped = Command::new("kill")
-        .args(["-INT", &alloc.0.id().to_string()])
-        .status()
-        .unwrap();
-    assert!(stopped.success());
-    assert!(alloc.0.wait().unwrap().success());
+    common::interrupt_and_wait(&mut alloc, "the allocator");
     let text = std::fs::read_to_string(&log).unwrap();
     for j in ["j1", "j2", "j3", "j4"] {
         let said = text

@@ -19,9 +19,7 @@ fn workspace(rel: &str) -> PathBuf {
 }
 
 fn scratch(name: &str) -> PathBuf {
-    let d = std::env::temp_dir().join(format!("rig-identify-{}", std::process::id()));
-    std::fs::create_dir_all(&d).unwrap();
-    d.join(name)
+    common::test_dir("identify").join(name)
 }
 
 /// A lever-bench run (paper B's bench at a 9 mm pivot, 30 s at 1 kHz, 14-bit encoder, 1 mN·m

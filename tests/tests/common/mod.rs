@@ -143,3 +143,28 @@ pub async fn wait_alive_on(z: &rig_runtime::zenoh::Session, keys: &[String]) {
         .unwrap();
     assert!(missing.is_empty(), "not up within 20 s: {missing:?}");
 }
+
+/// A directory for one test's files, `rig-<what>-<pid>` under the temp dir, made if missing.
+pub fn test_dir(what: &str) -> PathBuf {
+    let dir = std::env::temp_dir().join(format!("rig-{what}-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    dir
+}
+
+/// Ends a process as Ctrl-C would (SIGINT), without waiting for it.
+pub fn interrupt(p: &Proc) {
+    let sent = Command::new("kill")
+        .args(["-INT", &p.0.id().to_string()])
+        .status()
+        .unwrap();
+    assert!(sent.success(), "kill -INT {}", p.0.id());
+}
+
+/// [`interrupt`], then asserts the process ends cleanly (exit status 0).
+pub fn interrupt_and_wait(p: &mut Proc, what: &str) {
+    interrupt(p);
+    assert!(
+        p.0.wait().unwrap().success(),
+        "{what} ends cleanly on Ctrl-C"
+    );
+}
