@@ -57,6 +57,32 @@ async fn session(hub: &str) -> rig_runtime::zenoh::Session {
     common::session(&[], &[hub]).await
 }
 
+/// Asks the allocator (`rig/parallel/allocate`) for `percent` of the range at the parallel
+/// example's home pose; its answer, which must come within 5 s and be an allocation.
+async fn allocate(z: &rig_runtime::zenoh::Session, id: u64, percent: f64) -> AllocationResult {
+    let req = AllocationRequest {
+        id,
+        x_m: 0.075,
+        y_m: 0.2,
+        target: AllocationTarget::Percent(percent),
+    };
+    let replies = z
+        .get("rig/parallel/allocate")
+        .payload(encode(&req).unwrap())
+        .await
+        .unwrap();
+    let reply = tokio::time::timeout(Duration::from_secs(5), replies.recv_async())
+        .await
+        .unwrap()
+        .unwrap();
+    let bytes = reply
+        .result()
+        .expect("an allocation, not an error")
+        .payload()
+        .to_bytes();
+    decode::<AllocationResult>(&bytes).unwrap()
+}
+
 #[test]
 fn a_pushed_end_effector_force_is_estimated_within_the_simulators_accuracy() {
     let _one_at_a_time = serial();
@@ -174,27 +200,7 @@ fn an_allocation_request_round_trips_to_pivot_commands() {
             .map(|j| alive("joint", j))
             .collect();
         common::wait_alive_on(&z, &joints).await;
-        let req = AllocationRequest {
-            id: 42,
-            x_m: 0.075,
-            y_m: 0.2,
-            target: AllocationTarget::Percent(25.0),
-        };
-        let replies = z
-            .get("rig/parallel/allocate")
-            .payload(encode(&req).unwrap())
-            .await
-            .unwrap();
-        let reply = tokio::time::timeout(Duration::from_secs(5), replies.recv_async())
-            .await
-            .unwrap()
-            .unwrap();
-        let bytes = reply
-            .result()
-            .expect("an allocation, not an error")
-            .payload()
-            .to_bytes();
-        let result = decode::<AllocationResult>(&bytes).unwrap();
+        let result = allocate(&z, 42, 25.0).await;
         assert_eq!(result.id, 42);
         assert!(result.feasible, "{}", result.error);
         assert!(result.achieved.xy.abs() < 1e-6 * result.achieved.xx);
@@ -1110,28 +1116,9 @@ fn commands_that_reach_no_joint_are_reported_not_sent_silently() {
         &log,
     );
     wait_alive(&hub, &[alive("allocator", "0")]);
-    async fn ask(z: &rig_runtime::zenoh::Session, id: u64) {
-        let req = AllocationRequest {
-            id,
-            x_m: 0.075,
-            y_m: 0.2,
-            target: AllocationTarget::Percent(25.0 + id as f64),
-        };
-        let replies = z
-            .get("rig/parallel/allocate")
-            .payload(encode(&req).unwrap())
-            .await
-            .unwrap();
-        let reply = tokio::time::timeout(Duration::from_secs(5), replies.recv_async())
-            .await
-            .unwrap()
-            .unwrap();
-        let r = decode::<AllocationResult>(&reply.result().unwrap().payload().to_bytes());
-        assert!(r.unwrap().feasible);
-    }
     let _joints = rt().block_on(async {
         let z = session(&hub).await;
-        ask(&z, 1).await;
+        assert!(allocate(&z, 1, 26.0).await.feasible);
         let joints: Vec<Proc> = ["j1", "j2", "j3", "j4"]
             .iter()
             .map(|j| joint(j, &hub, now_ns()))
@@ -1141,7 +1128,7 @@ fn commands_that_reach_no_joint_are_reported_not_sent_silently() {
             .map(|j| alive("joint", j))
             .collect();
         common::wait_alive_on(&z, &alive_joints).await;
-        ask(&z, 2).await;
+        assert!(allocate(&z, 2, 27.0).await.feasible);
         tokio::time::sleep(Duration::from_millis(300)).await;
         joints
     });

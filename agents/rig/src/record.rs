@@ -20,7 +20,7 @@ use rig_estimator::core::{CoreTiming, EstimatorCore, Output};
 use rig_protocol::json::{
     encode_any, from_json, json_schema, kind_of_schema, schema_name, to_json,
 };
-use rig_protocol::{EeEstimate, JointEstimate, JointSample, Keys, decode, decode_any};
+use rig_protocol::{EeEstimate, JointEstimate, JointSample, Keys, Kind, decode, decode_any};
 use rig_runtime::{NetArgs, RunFor, now_ns, open, tokio_runtime, zenoh_err};
 
 use crate::error::CliError;
@@ -30,32 +30,48 @@ pub const JSON: &str = "json";
 /// Message encoding of payloads kept as they arrived: the wire bytes (`protocol/WIRE.md`).
 pub const WIRE: &str = "rig-wire/1";
 
-/// How one message is written: its channel's schema (name, encoding, data), the channel's
+/// How one message is written: the kind it is (None: not a valid rig message), its channel's
 /// message encoding, and the bytes.
 struct Encoded {
-    schema: (String, &'static str, String),
+    kind: Option<Kind>,
     encoding: &'static str,
     data: Vec<u8>,
 }
 
-/// A received payload as it is recorded: JSON when it is a valid rig message, else as it came.
-fn encode_for_recording(bytes: &[u8]) -> Encoded {
-    match decode_any(bytes) {
-        Ok(m) => Encoded {
-            schema: (schema_name(m.kind()), "jsonschema", json_schema(m.kind())),
-            encoding: JSON,
-            data: to_json(&m),
-        },
-        Err(_) => Encoded {
-            schema: (
-                "rig.Unreadable".into(),
+impl Encoded {
+    /// A received payload as it is recorded: JSON when it is a valid rig message, else as it
+    /// came.
+    fn of(bytes: &[u8]) -> Self {
+        match decode_any(bytes) {
+            Ok(m) => Encoded {
+                kind: Some(m.kind()),
+                encoding: JSON,
+                data: to_json(&m),
+            },
+            Err(_) => Encoded {
+                kind: None,
+                encoding: WIRE,
+                data: bytes.to_vec(),
+            },
+        }
+    }
+
+    /// The channel's schema name.
+    fn schema_name(&self) -> String {
+        self.kind
+            .map_or_else(|| "rig.Unreadable".into(), schema_name)
+    }
+
+    /// The channel's schema (encoding, data): generated once per schema, when it is added.
+    fn schema(&self) -> (&'static str, String) {
+        match self.kind {
+            Some(kind) => ("jsonschema", json_schema(kind)),
+            None => (
                 WIRE,
                 "payloads that are not valid rig messages, kept as they arrived (protocol/WIRE.md)"
                     .into(),
             ),
-            encoding: WIRE,
-            data: bytes.to_vec(),
-        },
+        }
     }
 }
 
@@ -97,13 +113,14 @@ impl<W: std::io::Write + std::io::Seek> Recording<W> {
         log_time: u64,
         publish_time: u64,
     ) -> Result<(), CliError> {
-        let e = encode_for_recording(payload);
-        let (name, encoding, data) = &e.schema;
-        let schema = match self.schemas.get(name) {
+        let e = Encoded::of(payload);
+        let name = e.schema_name();
+        let schema = match self.schemas.get(&name) {
             Some(&id) => id,
             None => {
-                let id = self.writer.add_schema(name, encoding, data.as_bytes())?;
-                self.schemas.insert(name.clone(), id);
+                let (encoding, data) = e.schema();
+                let id = self.writer.add_schema(&name, encoding, data.as_bytes())?;
+                self.schemas.insert(name, id);
                 id
             }
         };
