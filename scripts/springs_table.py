@@ -9,7 +9,11 @@ SHORT = {
     "coulomb_friction": lambda p: f"coulomb_friction ({p['friction_nm']:.2f} N·m)",
     "viscous_friction": lambda p: f"viscous_friction ({p['damping_nms_per_rad']:.3g} N·m·s/rad)",
     "backlash": lambda p: f"backlash ({p['width_rad'] * 1e3:.2f} mrad)",
-    "hard_stop": lambda p: f"hard_stop (from {p['onset_rad'] * 1e3:.2f} mrad)",
+    "hard_stop": lambda p: "hard_stop (from "
+    + " and ".join(
+        f"{p[k] * 1e3:+.2f} mrad" for k in ("onset_rad", "onset_negative_rad") if k in p
+    )
+    + ")",
     "sensor_delay": lambda p: f"sensor_delay ({p['delay_s'] * 1e3:.1f} ms)",
     "offset": lambda p: f"offset on the {p.get('on', 'torque')} ("
     + ", ".join(

@@ -308,3 +308,61 @@ fn one_case() {
         );
     }
 }
+
+/// A linear spring that stiffens past +60 mrad only (a stop on the wound side, none on the
+/// other), written here without the library's effect code: 1 % torque noise, an encoder of
+/// 0.1 mrad counts.
+fn spring_with_one_stop(phase: f64) -> Run {
+    let (k, at, rate) = (50.0, 0.06, 400.0);
+    let mut seed = 0x9E37_79B9_7F4A_7C15_u64 ^ phase.to_bits();
+    let mut noise = move || {
+        seed = seed
+            .wrapping_mul(6364136223846793005)
+            .wrapping_add(1442695040888963407);
+        ((seed >> 11) as f64 / (1u64 << 53) as f64 - 0.5) * 0.2
+    };
+    let (mut t, mut tau, mut phi) = (vec![], vec![], vec![]);
+    for i in 0..6000 {
+        let s = i as f64 * 0.002;
+        let x = 0.06 * (0.9 * s + phase).sin() + 0.035 * (2.3 * s + 2.0 * phase).sin();
+        t.push(s);
+        phi.push((x / 1e-4).round() * 1e-4);
+        tau.push(k * x + rate * (x - at).max(0.0) + noise());
+    }
+    Run {
+        name: format!("stop-{phase}"),
+        t,
+        tau,
+        phi: Some(phi),
+        d: None,
+        q: None,
+    }
+}
+
+#[test]
+fn a_stop_on_one_side_only_is_named_with_its_onset_and_nothing_stiffens_the_other_side() {
+    let fit = [spring_with_one_stop(0.3)];
+    let held = [spring_with_one_stop(1.7)];
+    let opts = Options {
+        model: Declared::Linear,
+        ..Options::default()
+    };
+    let id = identify(&fit, Holdout::Runs(&held), &opts, &mut |_, _| {}).unwrap();
+    let names: Vec<&str> = id.effects.iter().map(|f| f.effect.name()).collect();
+    assert_eq!(names, ["hard_stop"], "{:?}", id.effects);
+    let p = &id.effects[0].params;
+    let get = |k: &str| p.iter().find(|(n, _)| *n == k).map(|(_, v)| *v);
+    let at = get("onset_rad").unwrap();
+    assert!((at - 0.06).abs() < 0.004, "onset {at}");
+    let rate = get("stop_rate_nm_per_rad").unwrap();
+    assert!((rate - 400.0).abs() < 0.15 * 400.0, "rate {rate}");
+    // The other side: no stop, or one whose rate is noise (the bound keeps it ≥ 0).
+    let other = get("stop_rate_negative_nm_per_rad").unwrap_or(0.0);
+    assert!(other < 0.01 * rate, "{p:?}");
+    assert!(
+        id.after.rmse < 0.2 * id.before.rmse,
+        "{} → {}",
+        id.before.rmse,
+        id.after.rmse
+    );
+}

@@ -14,7 +14,7 @@
 use std::fmt;
 
 use super::model::Signals;
-use super::signals::{dead_zone, stop_operator_from};
+use super::signals::stop_operator_from;
 use super::stats::Bound;
 
 /// An effect a declared model may lack. Names are those of the report.
@@ -80,7 +80,7 @@ impl Effect {
                 "a gap of total width 2r in series with the spring: the spring is unloaded inside it, τ̂(sgn x·max(|x| − r, 0))"
             }
             Effect::HardStop => {
-                "the spring meets its stop: + k_s·max(|x| − x_s, 0)·sgn x, k_s ≥ 0 (stiffening beyond x_s)"
+                "the spring meets a stop on either side: + k₊·max(x − x₊, 0) + k₋·min(x + x₋, 0), k± ≥ 0 (stiffening beyond x₊ wound and beyond −x₋ unwound; one side's k may be 0)"
             }
             Effect::GeometricStiffness => {
                 "the lever's exact torque τ(φ, d) less its linearisation G(0)²k_α·φ (the k_α·α·dG/dφ term that k_φ = G²k_α drops)"
@@ -146,6 +146,10 @@ pub struct Shaped {
     /// t_j [rad]. NaN while it is searched (then it is a column linearised through the
     /// model's slope); once known, the model is replayed on the corrected input.
     pub size: f64,
+    /// For a hard stop: the onset x₋ > 0 of the stop on the negative side [rad] (`shape` is
+    /// x₊, the positive side's). A torsion spring wound and unwound meets different stops at
+    /// different deflections. NaN where the data never reaches that side.
+    pub lower: f64,
 }
 
 impl Shaped {
@@ -155,7 +159,22 @@ impl Shaped {
             shape,
             on: Place::Torque,
             size: f64::NAN,
+            lower: f64::NAN,
         }
+    }
+
+    /// A hard stop at x₊ on the positive side and −x₋ on the negative (either NaN: none).
+    pub(crate) fn stops(upper: f64, lower: f64) -> Self {
+        Self {
+            lower,
+            ..Self::new(Effect::HardStop, upper)
+        }
+    }
+
+    /// Whether two have the same shape (the searched numbers, NaN equal to NaN).
+    pub(crate) fn same_shape(&self, other: &Shaped) -> bool {
+        let eq = |a: f64, b: f64| a == b || (a.is_nan() && b.is_nan());
+        eq(self.shape, other.shape) && eq(self.lower, other.lower)
     }
 
     /// Whether it acts by changing the inputs the declared model sees (a lag, a gap, an
@@ -183,10 +202,19 @@ impl Shaped {
                 .collect(),
             Effect::CoulombFriction => vec![(s.dir.clone(), Bound::NonNegative)],
             Effect::ViscousFriction => vec![(s.xdot.clone(), Bound::NonNegative)],
-            Effect::HardStop => vec![(
-                xs.iter().map(|&v| dead_zone(v, r)).collect(),
-                Bound::NonNegative,
-            )],
+            // Each side's column is ≤ 0 or ≥ 0 with the side, so k± ≥ 0 stiffens.
+            Effect::HardStop => [(r, 1.0), (self.lower, -1.0)]
+                .into_iter()
+                .filter(|(at, _)| at.is_finite())
+                .map(|(at, side)| {
+                    (
+                        xs.iter()
+                            .map(|&v| side * (side * v - at).max(0.0))
+                            .collect(),
+                        Bound::NonNegative,
+                    )
+                })
+                .collect(),
             Effect::GeometricStiffness => match &s.lever {
                 Some(vsa) => vec![(
                     xs.iter()
@@ -260,6 +288,8 @@ impl Shaped {
         let fitted = coefs.iter().filter(|c| **c != 0.0).count();
         let shaped = usize::from(self.shape.is_finite() && self.effect != Effect::Hysteresis);
         match self.effect {
+            // Each side that stiffens has its onset searched.
+            Effect::HardStop => (2 * fitted).max(1),
             // A torque that leads the deflection is, to first order in δ, viscous friction
             // k·δ·ẋ; in the link equation either lag is, to first order, a change of the
             // inertia (N·δ·q̈). Such a delay is charged one parameter more, so that it is
@@ -314,7 +344,27 @@ impl Shaped {
             ],
             Effect::CoulombFriction => vec![("friction_nm", c(0))],
             Effect::ViscousFriction => vec![("damping_nms_per_rad", c(0))],
-            Effect::HardStop => vec![("onset_rad", self.shape), ("stop_rate_nm_per_rad", c(0))],
+            Effect::HardStop => {
+                // Only the sides that stiffen: onset_rad > 0 wound, < 0 unwound.
+                let mut p = Vec::new();
+                let mut i = 0;
+                for (at, side) in [(self.shape, 1.0), (self.lower, -1.0)] {
+                    if !at.is_finite() {
+                        continue;
+                    }
+                    if c(i) > 0.0 {
+                        if side > 0.0 {
+                            p.push(("onset_rad", at));
+                            p.push(("stop_rate_nm_per_rad", c(i)));
+                        } else {
+                            p.push(("onset_negative_rad", -at));
+                            p.push(("stop_rate_negative_nm_per_rad", c(i)));
+                        }
+                    }
+                    i += 1;
+                }
+                p
+            }
             Effect::GeometricStiffness => vec![("scale", c(0))],
             Effect::SensorDelay => vec![("delay_s", self.shape)],
             Effect::Offset => match self.on {

@@ -66,13 +66,23 @@ pub(crate) fn candidates(p: &Problem, opts: &Options, dt: f64, duration: f64) ->
             }
             (Effect::GeometricStiffness, false) => Err("a joint-torque effect"),
             (Effect::StiffnessDrift, false) => Err("the link equation has no spring"),
-            (Effect::HardStop, true) => Ok(each(
-                e,
-                [0.5, 0.6, 0.7, 0.8, 0.85, 0.9, 0.95]
+            // A stop on each side, at its own fraction of how far the data goes that way
+            // (a side the data hardly reaches has none).
+            (Effect::HardStop, true) => {
+                const AT: [f64; 10] = [0.4, 0.5, 0.6, 0.65, 0.7, 0.75, 0.8, 0.85, 0.9, 0.95];
+                let side = |reach: f64| -> Vec<f64> {
+                    if reach > 0.1 * x_max {
+                        AT.iter().map(|f| f * reach).collect()
+                    } else {
+                        vec![f64::NAN]
+                    }
+                };
+                let (up, down) = (side(hi), side(-lo));
+                Ok(up
                     .iter()
-                    .map(|f| f * x_max)
-                    .collect(),
-            )),
+                    .flat_map(|&u| down.iter().map(move |&d| Shaped::stops(u, d)))
+                    .collect())
+            }
             (Effect::GeometricStiffness, true) if opts.lever.is_none() => {
                 Err("needs a lever joint (--config) to know G(φ, d)")
             }
@@ -325,7 +335,7 @@ pub(crate) fn forward(
                     ) else {
                         break;
                     };
-                    let settled = c.shape == cand.shape;
+                    let settled = c.same_shape(&cand);
                     (cand, v) = (c, e);
                     if settled {
                         break;
@@ -556,7 +566,7 @@ fn settle_restoring(
                 &rows.train,
                 &rows.validate,
                 progress,
-            ) && c.shape != chosen[k].shape
+            ) && !c.same_shape(&chosen[k])
             {
                 chosen[k] = c;
                 moved = true;
