@@ -20,7 +20,7 @@ use rig_model::hysteresis::RestoringCurve;
 use rig_model::lever::LeverVsa;
 use rig_model::observer::EkfConfig;
 use rig_model::planar::{Elbow, FiveBar, FiveBarGeometry, PlanarRobot, SerialArm};
-pub use validate::check_endpoint;
+pub use validate::{check_endpoint, endpoint_reaches, unreachable_pairs};
 
 /// How the joints are arranged.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -220,6 +220,42 @@ pub struct ZenohConfig {
     pub connect: Vec<String>,
 }
 
+/// A role one machine of the plan runs (`[[machine]].roles`).
+#[derive(Debug, Clone, PartialEq, Eq, Hash)]
+pub enum Role {
+    /// The joint agent of the named joint (its board computer).
+    Joint(String),
+    Estimator,
+    Allocator,
+    /// `rig record`: every message of the rig into an MCAP file.
+    Recorder,
+    /// `rig viz`: the Rerun view.
+    Viz,
+}
+
+impl Role {
+    /// The role as the config writes it (a joint by its name).
+    pub fn name(&self) -> &str {
+        match self {
+            Role::Joint(j) => j,
+            Role::Estimator => "estimator",
+            Role::Allocator => "allocator",
+            Role::Recorder => "recorder",
+            Role::Viz => "viz",
+        }
+    }
+}
+
+/// One machine of the lab's plan (`[[machine]]`): the roles it runs and its Zenoh endpoints.
+/// A config without machines runs everything on one machine (`rig up`).
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct Machine {
+    pub name: String,
+    pub roles: Vec<Role>,
+    /// Its mode and endpoints (the `[zenoh]` section's mode when it names none).
+    pub zenoh: ZenohConfig,
+}
+
 /// How far apart the rig's clocks may be (`[clock]`).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct ClockConfig {
@@ -248,9 +284,16 @@ pub struct RigConfig {
     pub observer: ObserverConfig,
     pub zenoh: ZenohConfig,
     pub clock: ClockConfig,
+    /// The plan: which machine runs what (empty: all on one machine).
+    pub machines: Vec<Machine>,
 }
 
 impl RigConfig {
+    /// The machine of the plan called `name`.
+    pub fn machine(&self, name: &str) -> Option<&Machine> {
+        self.machines.iter().find(|m| m.name == name)
+    }
+
     /// The planar robot, for serial and parallel rigs.
     pub fn robot(&self) -> Option<PlanarRobot> {
         let g = self.geometry?;

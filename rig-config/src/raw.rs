@@ -13,6 +13,21 @@ pub struct RawConfig {
     pub observer: Option<RawObserver>,
     pub zenoh: Option<RawZenoh>,
     pub clock: Option<RawClock>,
+    #[serde(default)]
+    pub machine: Vec<RawMachine>,
+}
+
+/// One machine of the lab's plan: the roles it runs and how it joins the others.
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct RawMachine {
+    pub name: String,
+    pub roles: Vec<String>,
+    pub mode: Option<String>,
+    #[serde(default)]
+    pub listen: Vec<String>,
+    #[serde(default)]
+    pub connect: Vec<String>,
 }
 
 #[derive(Debug, Deserialize)]

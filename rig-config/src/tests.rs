@@ -348,3 +348,106 @@ fn a_home_pose_outside_a_motors_limits_is_refused_naming_the_angle() {
     assert_eq!(e[0].field, "joint[0].limits.motor_min_deg");
     assert!(e[0].message.contains("114.0 deg"), "{}", e[0].message);
 }
+
+#[test]
+fn the_example_plan_puts_every_role_on_one_machine() {
+    let (p, src) = example("parallel.toml");
+    let cfg = parse(&p, &src).unwrap();
+    let names: Vec<&str> = cfg.machines.iter().map(|m| m.name.as_str()).collect();
+    assert_eq!(names, ["host", "chain1", "chain2"]);
+    let host = cfg.machine("host").unwrap();
+    assert_eq!(
+        host.roles,
+        [Role::Estimator, Role::Allocator, Role::Recorder]
+    );
+    assert_eq!(
+        cfg.machine("chain2").unwrap().roles,
+        [Role::Joint("j3".into()), Role::Joint("j4".into())]
+    );
+    assert_eq!(host.zenoh.listen, ["tcp/0.0.0.0:7447"]);
+    assert_eq!(host.zenoh.mode, ZenohMode::Peer);
+}
+
+#[test]
+fn a_plan_where_a_joint_runs_nowhere_is_refused_naming_it() {
+    let e = errors_after(
+        "parallel.toml",
+        r#"roles = ["j3", "j4"]"#,
+        r#"roles = ["j3"]"#,
+    );
+    assert_eq!(e.len(), 1, "{e:?}");
+    assert_eq!(e[0].field, "machine");
+    assert!(e[0].message.contains("\"j4\""), "{}", e[0].message);
+}
+
+#[test]
+fn a_role_on_two_machines_is_refused_at_the_second() {
+    let e = errors_after(
+        "parallel.toml",
+        r#"roles = ["j3", "j4"]"#,
+        r#"roles = ["j3", "j4", "allocator"]"#,
+    );
+    assert_eq!(e.len(), 1, "{e:?}");
+    assert_eq!(e[0].field, "machine[2].roles[2]");
+    assert_eq!(
+        e[0].line,
+        Some(line_containing(
+            "parallel.toml",
+            r#"roles = ["j3", "j4"]"#,
+            0
+        ))
+    );
+    assert!(e[0].message.contains("\"host\""), "{}", e[0].message);
+}
+
+#[test]
+fn an_unknown_role_is_refused_with_the_roles_there_are() {
+    let e = errors_after(
+        "parallel.toml",
+        r#"roles = ["j1", "j2"]"#,
+        r#"roles = ["j1", "j2", "j9"]"#,
+    );
+    assert_eq!(e.len(), 1, "{e:?}");
+    assert_eq!(e[0].field, "machine[1].roles[2]");
+    assert!(e[0].message.contains("j1, j2, j3, j4"), "{}", e[0].message);
+}
+
+#[test]
+fn a_machine_no_other_can_reach_is_refused() {
+    // chain2 no longer connects to chain1: peers do not forward between two other peers.
+    let e = errors_after(
+        "parallel.toml",
+        r#"connect = ["tcp/192.0.2.10:7447", "tcp/192.0.2.11:7448"]"#,
+        r#"connect = ["tcp/192.0.2.10:7447"]"#,
+    );
+    assert_eq!(e.len(), 1, "{e:?}");
+    assert_eq!(e[0].field, "machine[1]");
+    assert!(
+        e[0].message.contains("\"chain1\"") && e[0].message.contains("\"chain2\""),
+        "{}",
+        e[0].message
+    );
+    // Through a router both reach each other.
+    let (path, src) = example("parallel.toml");
+    let routed = src
+        .replacen(
+            r#"connect = ["tcp/192.0.2.10:7447", "tcp/192.0.2.11:7448"]"#,
+            r#"connect = ["tcp/192.0.2.10:7447"]"#,
+            1,
+        )
+        .replacen(
+            "roles = [\"estimator\", \"allocator\", \"recorder\"]",
+            "roles = [\"estimator\", \"allocator\", \"recorder\"]\nmode = \"router\"",
+            1,
+        );
+    parse(&path, &routed).unwrap();
+}
+
+#[test]
+fn an_endpoint_reaches_a_listener_on_its_host_or_on_every_address() {
+    assert!(endpoint_reaches("tcp/10.0.0.1:7447", "tcp/10.0.0.1:7447"));
+    assert!(endpoint_reaches("tcp/10.0.0.1:7447", "tcp/0.0.0.0:7447"));
+    assert!(!endpoint_reaches("tcp/10.0.0.1:7447", "tcp/0.0.0.0:7448"));
+    assert!(!endpoint_reaches("udp/10.0.0.1:7447", "tcp/0.0.0.0:7447"));
+    assert!(!endpoint_reaches("tcp/10.0.0.2:7447", "tcp/10.0.0.1:7447"));
+}

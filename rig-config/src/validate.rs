@@ -197,8 +197,14 @@ fn build(c: &mut Collector<'_>, raw: &RawConfig) -> Option<RigConfig> {
         observer: observer?,
         zenoh: zenoh?,
         clock: clock?,
+        machines: vec![],
     };
     home_within_motor_limits(c, &jp, &cfg);
+    let machines = machines(c, &raw.machine, &cfg);
+    let cfg = RigConfig {
+        machines: machines?,
+        ..cfg
+    };
     Some(cfg)
 }
 
@@ -373,6 +379,7 @@ fn geometry(c: &mut Collector<'_>, t: Topology, raw: Option<&RawGeometry>) -> Op
             connect: vec![],
         },
         clock: ClockConfig::default(),
+        machines: vec![],
     };
     match cfg.robot().map(|r| r.at_position(home.0, home.1)) {
         Some(Ok(_)) => Some(geo),
@@ -993,13 +1000,18 @@ fn clock(c: &mut Collector<'_>, raw: Option<&RawClock>) -> Option<ClockConfig> {
 
 fn zenoh(c: &mut Collector<'_>, raw: Option<&RawZenoh>) -> Option<ZenohConfig> {
     let p = FieldPath::default().key("zenoh");
-    let Some(z) = raw else {
-        return Some(ZenohConfig {
+    match raw {
+        None => Some(ZenohConfig {
             mode: ZenohMode::Peer,
             listen: vec![],
             connect: vec![],
-        });
-    };
+        }),
+        Some(z) => zenoh_at(c, &p, z),
+    }
+}
+
+/// A mode and its endpoints, at `p` (`[zenoh]` or a `[[machine]]`).
+fn zenoh_at(c: &mut Collector<'_>, p: &FieldPath, z: &RawZenoh) -> Option<ZenohConfig> {
     let mode = c.one_of(
         &p.key("mode"),
         &z.mode,
@@ -1030,6 +1042,160 @@ fn zenoh(c: &mut Collector<'_>, raw: Option<&RawZenoh>) -> Option<ZenohConfig> {
         listen: z.listen.clone(),
         connect: z.connect.clone(),
     })
+}
+
+/// The plan (`[[machine]]`): each machine's roles and endpoints. Where there is a plan,
+/// every joint and the estimator run on exactly one machine, no role runs twice, and every two
+/// machines reach each other: one connects to an endpoint the other listens on, or both to a
+/// machine in router mode (Zenoh peers do not forward between two other peers).
+fn machines(c: &mut Collector<'_>, raw: &[RawMachine], cfg: &RigConfig) -> Option<Vec<Machine>> {
+    let mp = FieldPath::default().key("machine");
+    let before = c.errors.len();
+    let mut out = Vec::new();
+    let mut names: HashMap<&str, usize> = HashMap::new();
+    let mut runs: HashMap<Role, usize> = HashMap::new();
+    let joints: Vec<&str> = cfg.joints.iter().map(|j| j.name.as_str()).collect();
+    for (i, m) in raw.iter().enumerate() {
+        let p = mp.index(i);
+        if let Err(e) = rig_protocol_name("machine", &m.name) {
+            c.push(&p.key("name"), e);
+        }
+        if let Some(first) = names.insert(&m.name, i) {
+            c.push(
+                &p.key("name"),
+                format!(
+                    "machine name \"{}\" is used twice (also machine[{first}])",
+                    m.name
+                ),
+            );
+        }
+        let mut roles = Vec::new();
+        for (k, r) in m.roles.iter().enumerate() {
+            let role = match r.as_str() {
+                "estimator" => Role::Estimator,
+                "allocator" => Role::Allocator,
+                "recorder" => Role::Recorder,
+                "viz" => Role::Viz,
+                j if joints.contains(&j) => Role::Joint(j.to_string()),
+                other => {
+                    c.push(
+                        &p.key("roles").index(k),
+                        format!(
+                            "\"{other}\" is no role: write \"estimator\", \"allocator\", \"recorder\", \"viz\" or a joint's name ({})",
+                            joints.join(", ")
+                        ),
+                    );
+                    continue;
+                }
+            };
+            if let Some(first) = runs.insert(role.clone(), i) {
+                c.push(
+                    &p.key("roles").index(k),
+                    format!(
+                        "\"{r}\" also runs on machine \"{}\" (machine[{first}]); each role runs on one machine",
+                        raw[first].name
+                    ),
+                );
+            }
+            roles.push(role);
+        }
+        let raw_zenoh = RawZenoh {
+            mode: m.mode.clone().unwrap_or_else(|| {
+                match cfg.zenoh.mode {
+                    ZenohMode::Peer => "peer",
+                    ZenohMode::Client => "client",
+                    ZenohMode::Router => "router",
+                }
+                .to_string()
+            }),
+            listen: m.listen.clone(),
+            connect: m.connect.clone(),
+        };
+        if let Some(z) = zenoh_at(c, &p, &raw_zenoh) {
+            out.push(Machine {
+                name: m.name.clone(),
+                roles,
+                zenoh: z,
+            });
+        }
+    }
+    if raw.is_empty() {
+        return Some(out);
+    }
+    let missing: Vec<&str> = joints
+        .iter()
+        .copied()
+        .filter(|j| !runs.contains_key(&Role::Joint(j.to_string())))
+        .chain((!runs.contains_key(&Role::Estimator)).then_some("estimator"))
+        .collect();
+    if !missing.is_empty() {
+        c.push(
+            &mp,
+            format!(
+                "{} run(s) on no machine; add each to one machine's roles",
+                missing
+                    .iter()
+                    .map(|m| format!("\"{m}\""))
+                    .collect::<Vec<_>>()
+                    .join(", ")
+            ),
+        );
+    }
+    if c.errors.len() == before {
+        for (a, b) in unreachable_pairs(&out) {
+            c.push(
+                &mp.index(a),
+                format!(
+                    "machine \"{}\" cannot reach machine \"{}\" (machine[{b}]): neither connects to an endpoint the other listens on, and no router links both; add the other's listen endpoint to one of their `connect` lists",
+                    out[a].name, out[b].name
+                ),
+            );
+        }
+    }
+    (c.errors.len() == before).then_some(out)
+}
+
+/// Whether `connect` reaches a session listening on `listen`: the same protocol and port,
+/// and the same host or a listener on every address (0.0.0.0, [::]).
+pub fn endpoint_reaches(connect: &str, listen: &str) -> bool {
+    let split = |e: &str| -> Option<(String, String, String)> {
+        let (proto, addr) = e.split_once('/')?;
+        let addr = addr.split('#').next()?;
+        let (host, port) = addr.rsplit_once(':')?;
+        Some((proto.to_string(), host.to_string(), port.to_string()))
+    };
+    match (split(connect), split(listen)) {
+        (Some((pc, hc, portc)), Some((pl, hl, portl))) => {
+            pc == pl && portc == portl && (hc == hl || hl == "0.0.0.0" || hl == "[::]")
+        }
+        _ => false,
+    }
+}
+
+/// Pairs of machines (indices, each pair once) with no link between them and no router that
+/// both link to.
+pub fn unreachable_pairs(ms: &[Machine]) -> Vec<(usize, usize)> {
+    let link = |a: &Machine, b: &Machine| {
+        let one_way = |x: &Machine, y: &Machine| {
+            x.zenoh
+                .connect
+                .iter()
+                .any(|c| y.zenoh.listen.iter().any(|l| endpoint_reaches(c, l)))
+        };
+        one_way(a, b) || one_way(b, a)
+    };
+    let mut out = Vec::new();
+    for a in 0..ms.len() {
+        for b in a + 1..ms.len() {
+            let via_router = ms
+                .iter()
+                .any(|r| r.zenoh.mode == ZenohMode::Router && link(&ms[a], r) && link(&ms[b], r));
+            if !link(&ms[a], &ms[b]) && !via_router {
+                out.push((a, b));
+            }
+        }
+    }
+    out
 }
 
 /// The Zenoh transports the rig is built with (the workspace's `zenoh` features).

@@ -147,3 +147,44 @@ fn bytes_that_are_no_recording_are_an_error_and_a_report_never_makes_directories
     assert!(!dir.join("no").exists(), "a directory was made");
     std::fs::remove_dir_all(&dir).ok();
 }
+
+#[test]
+fn rig_validate_prints_the_plan_and_refuses_one_where_a_joint_runs_nowhere() {
+    let o = Command::new(bin("rig"))
+        .args(["validate"])
+        .arg(config())
+        .output()
+        .unwrap();
+    let out = String::from_utf8_lossy(&o.stdout);
+    assert!(o.status.success(), "{out}");
+    assert!(
+        out.contains(
+            "machine \"chain2\" (peer) runs j3, j4; listens on nothing; connects to tcp/192.0.2.10:7447, tcp/192.0.2.11:7448"
+        ),
+        "{out}"
+    );
+    assert!(
+        out.contains("machine \"host\" (peer) runs estimator, allocator, recorder"),
+        "{out}"
+    );
+
+    let dir = common::test_dir("validate-plan");
+    let src = std::fs::read_to_string(config()).unwrap();
+    let bad = dir.join("plan.toml");
+    std::fs::write(
+        &bad,
+        src.replacen(r#"roles = ["j1", "j2"]"#, r#"roles = ["j1"]"#, 1),
+    )
+    .unwrap();
+    let o = Command::new(bin("rig"))
+        .args(["validate"])
+        .arg(&bad)
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert_eq!(o.status.code(), Some(1), "{err}");
+    assert!(
+        err.contains("machine: \"j2\" run(s) on no machine"),
+        "{err}"
+    );
+}

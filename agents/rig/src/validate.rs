@@ -2,7 +2,7 @@
 
 use std::path::PathBuf;
 
-use rig_config::{JointKind, RigConfig};
+use rig_config::{JointKind, RigConfig, ZenohMode};
 
 use crate::error::CliError;
 
@@ -17,7 +17,10 @@ pub fn run(args: &Args) -> Result<(), CliError> {
     let mut failed = 0usize;
     for f in &args.files {
         match rig_config::load(f) {
-            Ok(cfg) => println!("ok: {}: {}", f.display(), summary(&cfg)),
+            Ok(cfg) => {
+                println!("ok: {}: {}", f.display(), summary(&cfg));
+                print!("{}", plan(&cfg));
+            }
             Err(e) => {
                 eprintln!("{e}");
                 failed += 1;
@@ -55,4 +58,38 @@ fn summary(cfg: &RigConfig) -> String {
         cfg.rate_hz,
         kinds.join(", ")
     )
+}
+
+/// The plan (`[[machine]]`), one line per machine: what it runs, how it joins the others.
+/// Empty without a plan.
+pub fn plan(cfg: &RigConfig) -> String {
+    let mut out = String::new();
+    for (i, m) in cfg.machines.iter().enumerate() {
+        let roles: Vec<&str> = m.roles.iter().map(|r| r.name()).collect();
+        let mode = match m.zenoh.mode {
+            ZenohMode::Peer => "peer",
+            ZenohMode::Client => "client",
+            ZenohMode::Router => "router",
+        };
+        let list = |v: &[String]| {
+            if v.is_empty() {
+                "nothing".to_string()
+            } else {
+                v.join(", ")
+            }
+        };
+        out += &format!(
+            "{} machine \"{}\" ({mode}) runs {}; listens on {}; connects to {}\n",
+            if i == 0 { "  plan:" } else { "       " },
+            m.name,
+            if roles.is_empty() {
+                "nothing".to_string()
+            } else {
+                roles.join(", ")
+            },
+            list(&m.zenoh.listen),
+            list(&m.zenoh.connect)
+        );
+    }
+    out
 }
