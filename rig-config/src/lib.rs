@@ -246,14 +246,19 @@ impl Role {
     }
 }
 
-/// One machine of the lab's plan (`[[machine]]`): the roles it runs and its Zenoh endpoints.
-/// A config without machines runs everything on one machine (`rig up`).
+/// One machine of the lab's plan (`[[machine]]`): the roles it runs and how it links to the
+/// others. `rig launch --machine` runs a Zenoh router on it (the machine's hub: it listens
+/// and connects as written here, and forwards between its roles and the other machines'
+/// hubs); its roles join the hub on loopback. A config without machines runs everything on
+/// one machine (`rig up`).
 #[derive(Debug, Clone, PartialEq, Eq)]
 pub struct Machine {
     pub name: String,
     pub roles: Vec<Role>,
-    /// Its mode and endpoints (the `[zenoh]` section's mode when it names none).
-    pub zenoh: ZenohConfig,
+    /// Endpoints its hub listens on (others connect here).
+    pub listen: Vec<String>,
+    /// Endpoints of other machines' hubs it connects to.
+    pub connect: Vec<String>,
 }
 
 /// How far apart the rig's clocks may be (`[clock]`).

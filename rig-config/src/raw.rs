@@ -23,7 +23,6 @@ pub struct RawConfig {
 pub struct RawMachine {
     pub name: String,
     pub roles: Vec<String>,
-    pub mode: Option<String>,
     #[serde(default)]
     pub listen: Vec<String>,
     #[serde(default)]

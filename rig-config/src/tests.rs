@@ -364,8 +364,11 @@ fn the_example_plan_puts_every_role_on_one_machine() {
         cfg.machine("chain2").unwrap().roles,
         [Role::Joint("j3".into()), Role::Joint("j4".into())]
     );
-    assert_eq!(host.zenoh.listen, ["tcp/0.0.0.0:7447"]);
-    assert_eq!(host.zenoh.mode, ZenohMode::Peer);
+    assert_eq!(host.listen, ["tcp/0.0.0.0:7447"]);
+    assert_eq!(
+        cfg.machine("chain1").unwrap().connect,
+        ["tcp/192.0.2.10:7447"]
+    );
 }
 
 #[test]
@@ -413,34 +416,37 @@ fn an_unknown_role_is_refused_with_the_roles_there_are() {
 }
 
 #[test]
-fn a_machine_no_other_can_reach_is_refused() {
-    // chain2 no longer connects to chain1: peers do not forward between two other peers.
-    let e = errors_after(
-        "parallel.toml",
-        r#"connect = ["tcp/192.0.2.10:7447", "tcp/192.0.2.11:7448"]"#,
-        r#"connect = ["tcp/192.0.2.10:7447"]"#,
+fn a_machine_no_chain_of_links_joins_to_the_others_is_refused() {
+    let (path, src) = example("parallel.toml");
+    let at = src.rfind(r#"connect = ["tcp/192.0.2.10:7447"]"#).unwrap();
+    let mut cut = src.clone();
+    cut.replace_range(
+        at..at + r#"connect = ["tcp/192.0.2.10:7447"]"#.len(),
+        "connect = []",
     );
+    let e = parse(&path, &cut).expect_err("chain2 links to nobody").0;
     assert_eq!(e.len(), 1, "{e:?}");
-    assert_eq!(e[0].field, "machine[1]");
+    assert_eq!(e[0].field, "machine[2]");
     assert!(
-        e[0].message.contains("\"chain1\"") && e[0].message.contains("\"chain2\""),
+        e[0].message.contains("\"chain2\"") && e[0].message.contains("\"host\""),
         "{}",
         e[0].message
     );
-    // Through a router both reach each other.
-    let (path, src) = example("parallel.toml");
-    let routed = src
-        .replacen(
-            r#"connect = ["tcp/192.0.2.10:7447", "tcp/192.0.2.11:7448"]"#,
-            r#"connect = ["tcp/192.0.2.10:7447"]"#,
-            1,
-        )
-        .replacen(
-            "roles = [\"estimator\", \"allocator\", \"recorder\"]",
-            "roles = [\"estimator\", \"allocator\", \"recorder\"]\nmode = \"router\"",
-            1,
-        );
-    parse(&path, &routed).unwrap();
+    // chain2 linked to chain1 only: joined to the host through chain1's hub.
+    let through = src.replacen(
+        "roles = [\"j1\", \"j2\"]",
+        "roles = [\"j1\", \"j2\"]\nlisten = [\"tcp/0.0.0.0:7448\"]",
+        1,
+    );
+    let at = through
+        .rfind(r#"connect = ["tcp/192.0.2.10:7447"]"#)
+        .unwrap();
+    let mut through = through.clone();
+    through.replace_range(
+        at..at + r#"connect = ["tcp/192.0.2.10:7447"]"#.len(),
+        r#"connect = ["tcp/192.0.2.11:7448"]"#,
+    );
+    parse(&path, &through).unwrap();
 }
 
 #[test]

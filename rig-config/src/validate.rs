@@ -1045,9 +1045,9 @@ fn zenoh_at(c: &mut Collector<'_>, p: &FieldPath, z: &RawZenoh) -> Option<ZenohC
 }
 
 /// The plan (`[[machine]]`): each machine's roles and endpoints. Where there is a plan,
-/// every joint and the estimator run on exactly one machine, no role runs twice, and every two
-/// machines reach each other: one connects to an endpoint the other listens on, or both to a
-/// machine in router mode (Zenoh peers do not forward between two other peers).
+/// every joint and the estimator run on exactly one machine, no role runs twice, and every
+/// machine reaches every other through a chain of links (a link: one connects to an endpoint
+/// the other listens on). Each machine's hub is a Zenoh router, and routers forward.
 fn machines(c: &mut Collector<'_>, raw: &[RawMachine], cfg: &RigConfig) -> Option<Vec<Machine>> {
     let mp = FieldPath::default().key("machine");
     let before = c.errors.len();
@@ -1099,23 +1099,21 @@ fn machines(c: &mut Collector<'_>, raw: &[RawMachine], cfg: &RigConfig) -> Optio
             }
             roles.push(role);
         }
-        let raw_zenoh = RawZenoh {
-            mode: m.mode.clone().unwrap_or_else(|| {
-                match cfg.zenoh.mode {
-                    ZenohMode::Peer => "peer",
-                    ZenohMode::Client => "client",
-                    ZenohMode::Router => "router",
+        let mut ok = true;
+        for (field, list) in [("listen", &m.listen), ("connect", &m.connect)] {
+            for (k, e) in list.iter().enumerate() {
+                if let Err(msg) = check_endpoint(e) {
+                    c.push(&p.key(field).index(k), msg);
+                    ok = false;
                 }
-                .to_string()
-            }),
-            listen: m.listen.clone(),
-            connect: m.connect.clone(),
-        };
-        if let Some(z) = zenoh_at(c, &p, &raw_zenoh) {
+            }
+        }
+        if ok {
             out.push(Machine {
                 name: m.name.clone(),
                 roles,
-                zenoh: z,
+                listen: m.listen.clone(),
+                connect: m.connect.clone(),
             });
         }
     }
@@ -1146,7 +1144,7 @@ fn machines(c: &mut Collector<'_>, raw: &[RawMachine], cfg: &RigConfig) -> Optio
             c.push(
                 &mp.index(a),
                 format!(
-                    "machine \"{}\" cannot reach machine \"{}\" (machine[{b}]): neither connects to an endpoint the other listens on, and no router links both; add the other's listen endpoint to one of their `connect` lists",
+                    "machine \"{}\" cannot reach machine \"{}\" (machine[{b}]): no chain of links joins them (a link: one connects to an endpoint the other listens on); add an endpoint one of its group listens on to a `connect` list of the other group",
                     out[a].name, out[b].name
                 ),
             );
@@ -1172,30 +1170,32 @@ pub fn endpoint_reaches(connect: &str, listen: &str) -> bool {
     }
 }
 
-/// Pairs of machines (indices, each pair once) with no link between them and no router that
-/// both link to.
-pub fn unreachable_pairs(ms: &[Machine]) -> Vec<(usize, usize)> {
-    let link = |a: &Machine, b: &Machine| {
-        let one_way = |x: &Machine, y: &Machine| {
-            x.zenoh
-                .connect
-                .iter()
-                .any(|c| y.zenoh.listen.iter().any(|l| endpoint_reaches(c, l)))
-        };
-        one_way(a, b) || one_way(b, a)
+/// Whether machine `a` links to machine `b`: one connects to an endpoint the other listens on.
+pub fn linked(a: &Machine, b: &Machine) -> bool {
+    let one_way = |x: &Machine, y: &Machine| {
+        x.connect
+            .iter()
+            .any(|c| y.listen.iter().any(|l| endpoint_reaches(c, l)))
     };
-    let mut out = Vec::new();
-    for a in 0..ms.len() {
-        for b in a + 1..ms.len() {
-            let via_router = ms
-                .iter()
-                .any(|r| r.zenoh.mode == ZenohMode::Router && link(&ms[a], r) && link(&ms[b], r));
-            if !link(&ms[a], &ms[b]) && !via_router {
-                out.push((a, b));
-            }
+    one_way(a, b) || one_way(b, a)
+}
+
+/// Pairs of machines (indices, each pair once) that no chain of links joins: for each
+/// machine outside the first machine's group, the pair (it, the first machine).
+pub fn unreachable_pairs(ms: &[Machine]) -> Vec<(usize, usize)> {
+    let mut reached = vec![false; ms.len()];
+    let mut todo = vec![0];
+    while let Some(i) = todo.pop() {
+        if i >= ms.len() || reached[i] {
+            continue;
         }
+        reached[i] = true;
+        todo.extend((0..ms.len()).filter(|&j| !reached[j] && linked(&ms[i], &ms[j])));
     }
-    out
+    (1..ms.len())
+        .filter(|&j| !reached[j])
+        .map(|j| (j, 0))
+        .collect()
 }
 
 /// The Zenoh transports the rig is built with (the workspace's `zenoh` features).

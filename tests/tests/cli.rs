@@ -159,12 +159,14 @@ fn rig_validate_prints_the_plan_and_refuses_one_where_a_joint_runs_nowhere() {
     assert!(o.status.success(), "{out}");
     assert!(
         out.contains(
-            "machine \"chain2\" (peer) runs j3, j4; listens on nothing; connects to tcp/192.0.2.10:7447, tcp/192.0.2.11:7448"
+            "machine \"chain2\" runs j3, j4; listens on nothing; connects to tcp/192.0.2.10:7447"
         ),
         "{out}"
     );
     assert!(
-        out.contains("machine \"host\" (peer) runs estimator, allocator, recorder"),
+        out.contains(
+            "machine \"host\" runs estimator, allocator, recorder; listens on tcp/0.0.0.0:7447"
+        ),
         "{out}"
     );
 
@@ -187,4 +189,44 @@ fn rig_validate_prints_the_plan_and_refuses_one_where_a_joint_runs_nowhere() {
         err.contains("machine: \"j2\" run(s) on no machine"),
         "{err}"
     );
+}
+
+#[test]
+fn rig_launch_names_a_machine_the_plan_lacks_and_a_role_that_fails() {
+    let o = Command::new(bin("rig"))
+        .args(["launch", "--config"])
+        .arg(config())
+        .args(["--machine", "chain9"])
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert_eq!(o.status.code(), Some(1), "{err}");
+    assert!(
+        err.contains("no such machine; it has host, chain1, chain2"),
+        "{err}"
+    );
+
+    // chain1's joints on hardware this machine lacks: the joint agent fails, the launcher
+    // says which role failed and ends (the hub's link to the host is only retried meanwhile).
+    let t0 = Instant::now();
+    let o = Command::new(bin("rig"))
+        .args(["launch", "--config"])
+        .arg(config())
+        .args([
+            "--machine",
+            "chain1",
+            "--backend",
+            "dynamixel",
+            "--duration",
+            "20",
+        ])
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert_eq!(o.status.code(), Some(1), "{err}");
+    assert!(
+        err.contains("machine chain1: joints j1,j2 (exit status: "),
+        "{err}"
+    );
+    assert!(t0.elapsed() < Duration::from_secs(15), "{:?}", t0.elapsed());
 }

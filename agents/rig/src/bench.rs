@@ -197,13 +197,13 @@ fn zenoh_rtt(cfg: &RigConfig, pings: usize, payload: Vec<u8>) -> Result<Vec<u64>
     let config = |net: NetOverrides| zenoh_config(&cfg.zenoh, &net).map_err(CliError::from);
     let a = zenoh::open(config(NetOverrides {
         listen: vec![hub.clone()],
-        connect: vec![],
+        ..Default::default()
     })?)
     .wait()
     .map_err(zerr)?;
     let b = zenoh::open(config(NetOverrides {
-        listen: vec![],
         connect: vec![hub],
+        ..Default::default()
     })?)
     .wait()
     .map_err(zerr)?;

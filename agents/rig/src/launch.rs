@@ -73,6 +73,7 @@ impl Hub {
                 net: NetOverrides {
                     listen,
                     connect: connect.clone(),
+                    mode: None,
                 },
                 duration: None,
             },
@@ -81,6 +82,7 @@ impl Hub {
         let peer = NetOverrides {
             listen: vec![],
             connect: std::iter::once(hub.clone()).chain(connect).collect(),
+            mode: None,
         };
         let keys = Keys::new(&cfg.name)?;
         let session = open(&cfg.zenoh, &peer).await?;

@@ -38,6 +38,7 @@ mod identify;
 mod identify_data;
 mod identify_plots;
 mod launch;
+mod machine;
 mod progress;
 mod record;
 mod reproduce;
@@ -69,6 +70,14 @@ enum Command {
     /// over Zenoh on loopback, until Ctrl-C or --duration; then a summary scored against the
     /// simulated truth.
     Up(up::Args),
+    /// Start this machine's share of the config's plan (`[[machine]]`): a Zenoh hub that
+    /// links to the other machines, then its roles (joints, estimator, allocator, recorder,
+    /// viz) as processes joined to it; or print the plan with --plan (docs/DEPLOY.md):
+    ///
+    ///   rig launch --config lab.toml --plan
+    ///   rig launch --config lab.toml --machine chain1
+    #[command(verbatim_doc_comment)]
+    Launch(machine::Args),
     /// Run the estimator host: samples in, joint torques, stiffness, end-effector force out.
     Estimator(hosts::HostArgs),
     /// Run the allocator host: allocation queries and stiffness goals in, pivot commands out.
@@ -136,6 +145,7 @@ fn main() -> ExitCode {
     let cli = Cli::parse();
     let result = match cli.command {
         Command::Up(a) => up::run(&a),
+        Command::Launch(a) => machine::run(&a),
         Command::Estimator(a) => hosts::estimator(&a),
         Command::Allocator(a) => hosts::allocator(&a),
         Command::Record(a) => record::record(&a),

@@ -2,7 +2,7 @@
 
 use std::path::PathBuf;
 
-use rig_config::{JointKind, RigConfig, ZenohMode};
+use rig_config::{JointKind, RigConfig};
 
 use crate::error::CliError;
 
@@ -66,11 +66,6 @@ pub fn plan(cfg: &RigConfig) -> String {
     let mut out = String::new();
     for (i, m) in cfg.machines.iter().enumerate() {
         let roles: Vec<&str> = m.roles.iter().map(|r| r.name()).collect();
-        let mode = match m.zenoh.mode {
-            ZenohMode::Peer => "peer",
-            ZenohMode::Client => "client",
-            ZenohMode::Router => "router",
-        };
         let list = |v: &[String]| {
             if v.is_empty() {
                 "nothing".to_string()
@@ -79,7 +74,7 @@ pub fn plan(cfg: &RigConfig) -> String {
             }
         };
         out += &format!(
-            "{} machine \"{}\" ({mode}) runs {}; listens on {}; connects to {}\n",
+            "{} machine \"{}\" runs {}; listens on {}; connects to {}\n",
             if i == 0 { "  plan:" } else { "       " },
             m.name,
             if roles.is_empty() {
@@ -87,8 +82,8 @@ pub fn plan(cfg: &RigConfig) -> String {
             } else {
                 roles.join(", ")
             },
-            list(&m.zenoh.listen),
-            list(&m.zenoh.connect)
+            list(&m.listen),
+            list(&m.connect)
         );
     }
     out

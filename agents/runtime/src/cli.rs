@@ -4,6 +4,8 @@
 
 use std::time::Duration;
 
+use rig_config::ZenohMode;
+
 use crate::NetOverrides;
 
 /// Zenoh endpoints from the command line; each list, when given, replaces the config's.
@@ -15,6 +17,21 @@ pub struct NetArgs {
     /// Zenoh endpoints to connect to, e.g. tcp/10.0.0.2:7447 (replace the config's `[zenoh].connect`)
     #[arg(long, value_name = "ENDPOINT")]
     pub connect: Vec<String>,
+    /// Zenoh mode instead of the config's `[zenoh].mode`: peer, client (joins through the
+    /// endpoints it connects to; what `rig launch` gives a machine's roles) or router
+    #[arg(long, value_name = "MODE", value_parser = mode)]
+    pub mode: Option<ZenohMode>,
+}
+
+fn mode(s: &str) -> Result<ZenohMode, String> {
+    match s {
+        "peer" => Ok(ZenohMode::Peer),
+        "client" => Ok(ZenohMode::Client),
+        "router" => Ok(ZenohMode::Router),
+        _ => Err(format!(
+            "{s:?} is no Zenoh mode: write peer, client or router"
+        )),
+    }
 }
 
 impl NetArgs {
@@ -23,6 +40,7 @@ impl NetArgs {
         NetOverrides {
             listen: self.listen.clone(),
             connect: self.connect.clone(),
+            mode: self.mode,
         }
     }
 }

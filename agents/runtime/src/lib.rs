@@ -73,6 +73,9 @@ pub fn zenoh_err<E: Into<zenoh::Error>>(e: E) -> RuntimeError {
 pub struct NetOverrides {
     pub listen: Vec<String>,
     pub connect: Vec<String>,
+    /// Replaces the config's `[zenoh].mode` (`rig launch` runs its roles as clients of the
+    /// machine's hub).
+    pub mode: Option<ZenohMode>,
 }
 
 /// A role's loop clock: a tick every `period` (missed ticks skipped, not bunched) until the
@@ -148,12 +151,13 @@ pub fn zenoh_config(z: &ZenohConfig, net: &NetOverrides) -> Result<zenoh::Config
             why,
         })?;
     }
-    let mode = match z.mode {
+    let mode_of = net.mode.unwrap_or(z.mode);
+    let mode = match mode_of {
         ZenohMode::Peer => "peer",
         ZenohMode::Client => "client",
         ZenohMode::Router => "router",
     };
-    let listen = if listen.is_empty() && z.mode != ZenohMode::Client {
+    let listen = if listen.is_empty() && mode_of != ZenohMode::Client {
         vec!["tcp/127.0.0.1:0".to_string()]
     } else {
         listen
@@ -299,7 +303,7 @@ mod tests {
         assert!(zenoh_config(&z, &NetOverrides::default()).is_ok());
         let net = NetOverrides {
             listen: vec!["nonsense".into()],
-            connect: vec![],
+            ..Default::default()
         };
         assert!(matches!(
             zenoh_config(&z, &net),
@@ -322,6 +326,7 @@ mod tests {
         let net = |listen: bool| NetOverrides {
             listen: if listen { vec![hub.clone()] } else { vec![] },
             connect: if listen { vec![] } else { vec![hub.clone()] },
+            mode: None,
         };
         let a = open(&z, &net(true)).await.unwrap();
         let b = open(&z, &net(false)).await.unwrap();

@@ -107,6 +107,7 @@ pub async fn session(listen: &[&str], connect: &[&str]) -> rig_runtime::zenoh::S
         &rig_runtime::NetOverrides {
             listen: own(listen),
             connect: own(connect),
+            mode: None,
         },
     )
     .await
