@@ -19,7 +19,6 @@ use std::process::{Child, Command, Stdio};
 use std::time::{Duration, Instant};
 
 use rig_runtime::now_ns;
-use rig_sim::world::{HAND_STROKE_M, HAND_STROKE_S, StrokeWorld};
 
 /// Namespaces this test made; removed (with their veth ends) when dropped.
 struct Namespaces(Vec<String>);
@@ -225,7 +224,7 @@ fn three_machines_in_network_namespaces_run_the_plan_and_estimate_the_force_acro
         .output()
         .unwrap();
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
-    let mut truth: BTreeMap<u64, BTreeMap<u16, f64>> = BTreeMap::new();
+    let mut truth = common::Truths::new();
     for j in ["j1", "j2", "j3", "j4"] {
         let c = csv_columns(&csv.join(format!("rig.parallel.sim.joint.{j}.truth.csv")));
         for ((t, joint), tau) in c["t_acq_ns"].iter().zip(&c["joint"]).zip(&c["torque_nm"]) {
@@ -236,46 +235,19 @@ fn three_machines_in_network_namespaces_run_the_plan_and_estimate_the_force_acro
         }
     }
     let ee = csv_columns(&csv.join("rig.parallel.estimate.ee.csv"));
-    let cfg = rig_config::load(&cfg_path).unwrap();
-    let world = StrokeWorld::new(
-        cfg.robot().unwrap(),
-        cfg.geometry.unwrap().home,
-        HAND_STROKE_M,
-        HAND_STROKE_S,
-    )
-    .unwrap();
-    let (mut sq, mut n, mut peak) = (0.0, 0usize, 0.0_f64);
-    for ((t, fx), fy) in ee["t_ns"]
+    let scored: Vec<(u64, f64, f64)> = ee["t_ns"]
         .iter()
         .zip(&ee["force_n.0"])
         .zip(&ee["force_n.1"])
-    {
-        let t: u64 = t.parse().unwrap();
-        let (Ok(fx), Ok(fy)) = (fx.parse::<f64>(), fy.parse::<f64>()) else {
-            continue;
-        };
-        let Some(tj) = truth.get(&t).filter(|m| m.len() == 4) else {
-            continue;
-        };
-        if t < start + 2_000_000_000 {
-            continue;
-        }
-        let f = world
-            .force(
-                (t - start) as f64 * 1e-9,
-                &tj.values().copied().collect::<Vec<_>>(),
-            )
-            .unwrap();
-        sq += (fx - f[0]).powi(2) + (fy - f[1]).powi(2);
-        peak = peak.max(f.norm());
-        n += 1;
-    }
+        .filter_map(|((t, fx), fy)| Some((t.parse().ok()?, fx.parse().ok()?, fy.parse().ok()?)))
+        .filter(|(t, _, _)| *t >= start + 2_000_000_000)
+        .collect();
+    let (rmse, peak, n) = common::force_error(start, &truth, &scored);
     assert!(
         n > 2000,
         "only {n} end-effector estimates matched a complete truth (of {})",
         ee["t_ns"].len()
     );
-    let rmse = (sq / n as f64).sqrt();
     eprintln!(
         "across three namespaces: force RMSE {rmse:.4} N against a {peak:.2} N peak over {n} estimates"
     );

@@ -15,8 +15,6 @@ use std::time::{Duration, Instant};
 
 use rig_protocol::*;
 use rig_runtime::now_ns;
-use rig_sim::world::StrokeWorld;
-use rig_sim::world::{HAND_STROKE_M, HAND_STROKE_S};
 
 fn joint(name: &str, hub: &str, start_ns: u64) -> Proc {
     joint_linked(name, &[hub], start_ns)
@@ -97,8 +95,7 @@ fn a_pushed_end_effector_force_is_estimated_within_the_simulators_accuracy() {
     rt().block_on(async {
         let z = session(&hub).await;
         // Truths (4 kHz) and estimates (1 kHz) are collected in callbacks, never left queued.
-        type Truths = BTreeMap<u64, BTreeMap<u16, f64>>;
-        let truth_map = std::sync::Arc::new(std::sync::Mutex::new(Truths::new()));
+        let truth_map = std::sync::Arc::new(std::sync::Mutex::new(common::Truths::new()));
         let ee_list = std::sync::Arc::new(std::sync::Mutex::new(Vec::<EeEstimate>::new()));
         let (tm, el) = (truth_map.clone(), ee_list.clone());
         let _truths = z
@@ -129,38 +126,16 @@ fn a_pushed_end_effector_force_is_estimated_within_the_simulators_accuracy() {
         tokio::time::sleep(Duration::from_secs(10)).await;
         let truth = truth_map.lock().unwrap().clone();
         let ee = ee_list.lock().unwrap().clone();
-        let cfg = rig_config::load(&config()).unwrap();
-        let world = StrokeWorld::new(
-            cfg.robot().unwrap(),
-            cfg.geometry.unwrap().home,
-            HAND_STROKE_M,
-            HAND_STROKE_S,
-        )
-        .unwrap();
-        let (mut sq, mut n, mut peak) = (0.0, 0usize, 0.0_f64);
-        for e in &ee {
-            let (Some((fx, fy)), Some(t)) = (e.force_n, truth.get(&e.t_ns)) else {
-                continue;
-            };
-            if t.len() != 4 {
-                continue;
-            }
-            let f = world
-                .force(
-                    (e.t_ns - start) as f64 * 1e-9,
-                    &t.values().copied().collect::<Vec<_>>(),
-                )
-                .unwrap();
-            sq += (fx - f[0]).powi(2) + (fy - f[1]).powi(2);
-            peak = peak.max(f.norm());
-            n += 1;
-        }
+        let scored: Vec<(u64, f64, f64)> = ee
+            .iter()
+            .filter_map(|e| e.force_n.map(|(fx, fy)| (e.t_ns, fx, fy)))
+            .collect();
+        let (rmse, peak, n) = common::force_error(start, &truth, &scored);
         assert!(
             n > 2000,
             "only {n} estimates matched a complete truth (of {})",
             ee.len()
         );
-        let rmse = (sq / n as f64).sqrt();
         assert!(peak > 0.5, "the hand must load the robot: peak {peak} N");
         // The reproduction reaches 0.65–1.3 % on its strokes; the live rig adds real timing.
         assert!(

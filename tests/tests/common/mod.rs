@@ -169,3 +169,37 @@ pub fn interrupt_and_wait(p: &mut Proc, what: &str) {
         "{what} ends cleanly on Ctrl-C"
     );
 }
+
+/// Each simulated joint's true torque by acquisition time: `t_acq_ns → (joint index → N·m)`.
+pub type Truths = std::collections::BTreeMap<u64, std::collections::BTreeMap<u16, f64>>;
+
+/// The end-effector force estimates `(t_ns, fx, fy)` of the example parallel robot scored
+/// against the force its simulated hand pushed with (the stroke world started at `start`
+/// [ns]), at the ticks where all four joints' truths are known: (RMSE [N], peak [N], count).
+pub fn force_error(start: u64, truth: &Truths, ee: &[(u64, f64, f64)]) -> (f64, f64, usize) {
+    use rig_sim::world::{HAND_STROKE_M, HAND_STROKE_S, StrokeWorld};
+    let cfg = rig_config::load(&config()).unwrap();
+    let world = StrokeWorld::new(
+        cfg.robot().unwrap(),
+        cfg.geometry.unwrap().home,
+        HAND_STROKE_M,
+        HAND_STROKE_S,
+    )
+    .unwrap();
+    let (mut sq, mut n, mut peak) = (0.0, 0usize, 0.0_f64);
+    for &(t, fx, fy) in ee {
+        let Some(tj) = truth.get(&t).filter(|m| m.len() == 4) else {
+            continue;
+        };
+        let f = world
+            .force(
+                (t - start) as f64 * 1e-9,
+                &tj.values().copied().collect::<Vec<_>>(),
+            )
+            .unwrap();
+        sq += (fx - f[0]).powi(2) + (fy - f[1]).powi(2);
+        peak = peak.max(f.norm());
+        n += 1;
+    }
+    ((sq / n.max(1) as f64).sqrt(), peak, n)
+}
