@@ -1000,18 +1000,13 @@ fn clock(c: &mut Collector<'_>, raw: Option<&RawClock>) -> Option<ClockConfig> {
 
 fn zenoh(c: &mut Collector<'_>, raw: Option<&RawZenoh>) -> Option<ZenohConfig> {
     let p = FieldPath::default().key("zenoh");
-    match raw {
-        None => Some(ZenohConfig {
+    let Some(z) = raw else {
+        return Some(ZenohConfig {
             mode: ZenohMode::Peer,
             listen: vec![],
             connect: vec![],
-        }),
-        Some(z) => zenoh_at(c, &p, z),
-    }
-}
-
-/// A mode and its endpoints, at `p` (`[zenoh]` or a `[[machine]]`).
-fn zenoh_at(c: &mut Collector<'_>, p: &FieldPath, z: &RawZenoh) -> Option<ZenohConfig> {
+        });
+    };
     let mode = c.one_of(
         &p.key("mode"),
         &z.mode,
@@ -1021,15 +1016,7 @@ fn zenoh_at(c: &mut Collector<'_>, p: &FieldPath, z: &RawZenoh) -> Option<ZenohC
             ("router", ZenohMode::Router),
         ],
     );
-    let mut ok = true;
-    for (field, list) in [("listen", &z.listen), ("connect", &z.connect)] {
-        for (i, e) in list.iter().enumerate() {
-            if let Err(msg) = check_endpoint(e) {
-                c.push(&p.key(field).index(i), msg);
-                ok = false;
-            }
-        }
-    }
+    let mut ok = endpoints(c, &p, &z.listen, &z.connect);
     if mode == Some(ZenohMode::Client) && z.connect.is_empty() {
         c.push(
             &p.key("connect"),
@@ -1042,6 +1029,20 @@ fn zenoh_at(c: &mut Collector<'_>, p: &FieldPath, z: &RawZenoh) -> Option<ZenohC
         listen: z.listen.clone(),
         connect: z.connect.clone(),
     })
+}
+
+/// Checks the `listen` and `connect` endpoints of the section at `p`; whether all are good.
+fn endpoints(c: &mut Collector<'_>, p: &FieldPath, listen: &[String], connect: &[String]) -> bool {
+    let mut ok = true;
+    for (field, list) in [("listen", listen), ("connect", connect)] {
+        for (i, e) in list.iter().enumerate() {
+            if let Err(msg) = check_endpoint(e) {
+                c.push(&p.key(field).index(i), msg);
+                ok = false;
+            }
+        }
+    }
+    ok
 }
 
 /// The plan (`[[machine]]`): each machine's roles and endpoints. Where there is a plan,
@@ -1099,16 +1100,7 @@ fn machines(c: &mut Collector<'_>, raw: &[RawMachine], cfg: &RigConfig) -> Optio
             }
             roles.push(role);
         }
-        let mut ok = true;
-        for (field, list) in [("listen", &m.listen), ("connect", &m.connect)] {
-            for (k, e) in list.iter().enumerate() {
-                if let Err(msg) = check_endpoint(e) {
-                    c.push(&p.key(field).index(k), msg);
-                    ok = false;
-                }
-            }
-        }
-        if ok {
+        if endpoints(c, &p, &m.listen, &m.connect) {
             out.push(Machine {
                 name: m.name.clone(),
                 roles,

@@ -22,6 +22,7 @@ use rig_runtime::{NetOverrides, RunFor, tokio_runtime, zenoh, zenoh_config};
 
 use crate::error::CliError;
 use crate::up::free_loopback_endpoint;
+use crate::validate::or_nothing;
 
 /// Where a machine's joints read from (`rig-joint --backend`).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
@@ -114,34 +115,20 @@ fn role_command(
     local: &str,
     a: &Args,
 ) -> Result<Option<(String, Command)>, CliError> {
-    let exe = std::env::current_exe()?;
-    let mut c = match role {
+    let mut c = Command::new(std::env::current_exe()?);
+    match role {
         // A machine's joints are served by one agent (below), not one per role.
         Role::Joint(_) => return Ok(None),
-        Role::Estimator => {
-            let mut c = Command::new(&exe);
-            c.arg("estimator");
-            c
-        }
-        Role::Allocator => {
-            let mut c = Command::new(&exe);
-            c.arg("allocator");
-            c
-        }
+        Role::Estimator => c.arg("estimator"),
+        Role::Allocator => c.arg("allocator"),
         Role::Recorder => {
-            let mut c = Command::new(&exe);
             let out = a
                 .out
                 .clone()
                 .unwrap_or_else(|| PathBuf::from(format!("{}-{}.mcap", cfg.name, m.name)));
-            c.arg("record").arg("--out").arg(out);
-            c
+            c.arg("record").arg("--out").arg(out)
         }
-        Role::Viz => {
-            let mut c = Command::new(&exe);
-            c.args(["viz", "--viz"]);
-            c
-        }
+        Role::Viz => c.args(["viz", "--viz"]),
     };
     c.arg("--config").arg(&a.config);
     joined(&mut c, local, a);
@@ -221,16 +208,8 @@ async fn launch(cfg: &RigConfig, m: &Machine, a: &Args) -> Result<(), CliError> 
     eprintln!(
         "rig launch: machine {} — hub listening on {} (roles on {local}), connecting to {}",
         m.name,
-        if m.listen.is_empty() {
-            "nothing".to_string()
-        } else {
-            m.listen.join(", ")
-        },
-        if m.connect.is_empty() {
-            "nothing".to_string()
-        } else {
-            m.connect.join(", ")
-        }
+        or_nothing(&m.listen),
+        or_nothing(&m.connect)
     );
     // The recorder first, the joints last: each hears those started after it from their start.
     let mut order: Vec<&Role> = m.roles.iter().collect();

@@ -66,25 +66,23 @@ pub fn plan(cfg: &RigConfig) -> String {
     let mut out = String::new();
     for (i, m) in cfg.machines.iter().enumerate() {
         let roles: Vec<&str> = m.roles.iter().map(|r| r.name()).collect();
-        let list = |v: &[String]| {
-            if v.is_empty() {
-                "nothing".to_string()
-            } else {
-                v.join(", ")
-            }
-        };
         out += &format!(
             "{} machine \"{}\" runs {}; listens on {}; connects to {}\n",
             if i == 0 { "  plan:" } else { "       " },
             m.name,
-            if roles.is_empty() {
-                "nothing".to_string()
-            } else {
-                roles.join(", ")
-            },
-            list(&m.listen),
-            list(&m.connect)
+            or_nothing(&roles),
+            or_nothing(&m.listen),
+            or_nothing(&m.connect)
         );
     }
     out
+}
+
+/// A list joined with commas, or "nothing" when it is empty.
+pub fn or_nothing<S: AsRef<str>>(v: &[S]) -> String {
+    if v.is_empty() {
+        "nothing".to_string()
+    } else {
+        v.iter().map(AsRef::as_ref).collect::<Vec<_>>().join(", ")
+    }
 }
