@@ -112,14 +112,32 @@ fn test(args: &[String]) -> Result<(), String> {
     let root = root();
     let bin = python_env(&root)?;
     let cargo = std::env::var("CARGO").unwrap_or_else(|_| "cargo".into());
-    run(
-        Command::new(cargo)
-            .current_dir(&root)
-            .args(["test", "--workspace", "--release", "--no-fail-fast"])
-            .args(args)
-            .env("RIG_TOOLS_BIN", &bin),
-        "cargo test",
-    )
+    let mut cmd = Command::new(cargo);
+    cmd.current_dir(&root)
+        .args(["test", "--workspace", "--release", "--no-fail-fast"])
+        .args(args)
+        .env("RIG_TOOLS_BIN", &bin);
+    // `cargo xtask` is `cargo run -p xtask`, which sets the xtask package's own variables in
+    // our environment. Build scripts that watch them (ring's reads CARGO_PKG_NAME and others)
+    // would see them changed from the run command's build and rebuild ring, rustls, zenoh,
+    // Rerun and all above them for the tests: the inner cargo must see what a shell sees.
+    for (key, _) in std::env::vars_os() {
+        let k = key.to_string_lossy();
+        if k.starts_with("CARGO_PKG_")
+            || matches!(
+                k.as_ref(),
+                "CARGO_MANIFEST_DIR"
+                    | "CARGO_MANIFEST_PATH"
+                    | "CARGO_MANIFEST_LINKS"
+                    | "CARGO_CRATE_NAME"
+                    | "CARGO_BIN_NAME"
+                    | "CARGO_PRIMARY_PACKAGE"
+            )
+        {
+            cmd.env_remove(&key);
+        }
+    }
+    run(&mut cmd, "cargo test")
 }
 
 fn main() -> ExitCode {
