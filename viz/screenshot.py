@@ -30,7 +30,8 @@ viewer = subprocess.Popen(
 try:
     time.sleep(3.0)  # the viewer binds its port
     rig = subprocess.Popen(
-        [str(ROOT / "target" / "release" / "rig"), "up", "--duration", str(SECONDS + 3),
+        [str(pathlib.Path(os.environ.get("CARGO_TARGET_DIR", ROOT / "target")) / "release" / "rig"),
+         "up", "--duration", str(SECONDS + 3),
          "--viewer", URL])
     time.sleep(SECONDS)
     client = rrx.ViewerClient.connect(URL)

@@ -15,7 +15,7 @@ use rig_model::planar::{PlanarRobot, end_effector_force};
 use rig_protocol::{AnyMessage, JointState, StiffnessTriple, Topic};
 
 use crate::paths;
-use crate::trail::{Gate, Trail};
+use crate::trail::{self, Gate, Trail};
 
 /// Time series rate, loop trail (window, spacing, redraw), robot redraw [ns].
 const SERIES_NS: u64 = 10_000_000;
@@ -421,18 +421,31 @@ impl Scene {
             return Ok(());
         }
         let p = paths::joint_loop(&view.name);
-        if !view.measured.is_empty() {
+        // Both curves minus the measured curve's best line (the model's where nothing is
+        // measured): the loop is a few per cent of the torque, invisible on the raw line.
+        // Then both into ±1 by the measured curve's box: Rerun's 2D view has equal axes, and a
+        // loop of a few mN·m against degrees of deflection is flat at any zoom.
+        let (measured, model) = (view.measured.points(), view.model.points());
+        let reference = if measured.is_empty() {
+            &model
+        } else {
+            &measured
+        };
+        let line = trail::best_line(reference).unwrap_or((0.0, 0.0));
+        let unit = trail::extent(&trail::minus_line(reference, line)).unwrap_or((0.0, 1.0, 1.0));
+        let shown = |pts: &[[f32; 2]]| trail::to_unit_box(&trail::minus_line(pts, line), unit);
+        if !measured.is_empty() {
             rec.log(
                 format!("{p}/measured"),
-                &LineStrips2D::new([view.measured.points()])
+                &LineStrips2D::new([shown(&measured)])
                     .with_colors([rgb(TRUTH)])
                     .with_radii([rerun::Radius::new_ui_points(2.5)]),
             )?;
         }
-        if !view.model.is_empty() {
+        if !model.is_empty() {
             rec.log(
                 format!("{p}/model"),
-                &LineStrips2D::new([view.model.points()])
+                &LineStrips2D::new([shown(&model)])
                     .with_colors([rgb(ESTIMATE)])
                     .with_radii([rerun::Radius::new_ui_points(1.0)]),
             )?;
@@ -536,9 +549,12 @@ pub fn blueprint(cfg: &RigConfig) -> Blueprint {
         .joints
         .iter()
         .map(|j| {
-            Spatial2DView::new(format!("{} loop: deflection [deg] vs torque [N·m]", j.name))
-                .with_origin(paths::origin(&paths::joint_loop(&j.name)))
-                .into()
+            Spatial2DView::new(format!(
+                "{} loop: torque minus its best line vs deflection, last 2 s, each scaled to ±1",
+                j.name
+            ))
+            .with_origin(paths::origin(&paths::joint_loop(&j.name)))
+            .into()
         })
         .collect();
     let series: Vec<ContainerLike> = cfg

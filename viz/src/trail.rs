@@ -58,6 +58,69 @@ impl Trail {
     }
 }
 
+/// The least-squares line y = a + k·x through `points`, as (a, k); `None` for fewer than two
+/// points or no spread in x.
+pub fn best_line(points: &[[f32; 2]]) -> Option<(f64, f64)> {
+    let n = points.len() as f64;
+    if points.len() < 2 {
+        return None;
+    }
+    let (sx, sy) = points.iter().fold((0.0, 0.0), |(sx, sy), p| {
+        (sx + f64::from(p[0]), sy + f64::from(p[1]))
+    });
+    let (mx, my) = (sx / n, sy / n);
+    let (sxx, sxy) = points.iter().fold((0.0, 0.0), |(sxx, sxy), p| {
+        let dx = f64::from(p[0]) - mx;
+        (sxx + dx * dx, sxy + dx * (f64::from(p[1]) - my))
+    });
+    // No spread in x (or NaN): no line.
+    if sxx.partial_cmp(&0.0) != Some(std::cmp::Ordering::Greater) {
+        return None;
+    }
+    let k = sxy / sxx;
+    Some((my - k * mx, k))
+}
+
+/// `points` with the line (a, k) taken off their y: a hysteresis loop a few per cent of the
+/// torque range, drawn raw, is a straight line; its distance from the spring's best line is
+/// the loop itself.
+pub fn minus_line(points: &[[f32; 2]], (a, k): (f64, f64)) -> Vec<[f32; 2]> {
+    points
+        .iter()
+        .map(|p| {
+            let x = f64::from(p[0]);
+            [p[0], (f64::from(p[1]) - a - k * x) as f32]
+        })
+        .collect()
+}
+
+/// The box `points` span: (x centre, x half-width, y half-height about 0), each at least
+/// `f32::EPSILON`; `None` without points.
+pub fn extent(points: &[[f32; 2]]) -> Option<(f32, f32, f32)> {
+    let first = points.first()?;
+    let (mut lo, mut hi, mut y) = (first[0], first[0], 0.0f32);
+    for p in points {
+        lo = lo.min(p[0]);
+        hi = hi.max(p[0]);
+        y = y.max(p[1].abs());
+    }
+    Some((
+        0.5 * (lo + hi),
+        (0.5 * (hi - lo)).max(f32::EPSILON),
+        y.max(f32::EPSILON),
+    ))
+}
+
+/// `points` mapped into ±1 on both axes by the box `(x centre, x half-width, y half-height)`:
+/// a view with equal axes (Rerun's 2D views) shows a loop whose height is a few mN·m against
+/// a deflection of degrees as a line otherwise.
+pub fn to_unit_box(points: &[[f32; 2]], (xc, xh, yh): (f32, f32, f32)) -> Vec<[f32; 2]> {
+    points
+        .iter()
+        .map(|p| [(p[0] - xc) / xh, p[1] / yh])
+        .collect()
+}
+
 /// Lets one event through per `period_ns` of the message clock.
 #[derive(Debug, Clone, Copy)]
 pub struct Gate {
@@ -104,6 +167,31 @@ mod tests {
         // A source that restarts (time goes back) starts the trail over.
         assert!(t.push(3, 1.0, 1.0));
         assert_eq!(t.len(), 1);
+    }
+
+    #[test]
+    fn a_loop_minus_its_best_line_keeps_only_the_loop() {
+        // A loop on a steep line: y = 2 + 30·x ± 0.1 (loading above unloading), x swept
+        // up then down over the same points. By symmetry the best line is the backbone
+        // itself, and what is left is ±0.1: the loop's half-width, 0.3 % of the range.
+        let xs: Vec<f32> = (0..=100).map(|i| i as f32 / 100.0).collect();
+        let mut pts: Vec<[f32; 2]> = xs.iter().map(|&x| [x, 2.0 + 30.0 * x + 0.1]).collect();
+        pts.extend(xs.iter().rev().map(|&x| [x, 2.0 + 30.0 * x - 0.1]));
+        let (a, k) = best_line(&pts).unwrap();
+        assert!((a - 2.0).abs() < 1e-4 && (k - 30.0).abs() < 1e-4, "{a} {k}");
+        let d = minus_line(&pts, (a, k));
+        assert!((d[10][1] - 0.1).abs() < 1e-4, "{:?}", d[10]);
+        assert!((d[150][1] + 0.1).abs() < 1e-4, "{:?}", d[150]);
+        assert_eq!(d[37][0], pts[37][0], "x is kept");
+        assert_eq!(best_line(&pts[..1]), None);
+        assert_eq!(best_line(&[[1.0, 0.0], [1.0, 5.0]]), None, "no spread in x");
+        // Into the unit box: x from 0..1 to −1..1, the ±0.1 loop to ±1.
+        let b = extent(&d).unwrap();
+        assert!((b.0 - 0.5).abs() < 1e-6 && (b.1 - 0.5).abs() < 1e-6 && (b.2 - 0.1).abs() < 1e-4);
+        let u = to_unit_box(&d, b);
+        assert!((u[0][0] + 1.0).abs() < 1e-6 && (u[100][0] - 1.0).abs() < 1e-6);
+        assert!((u[10][1] - 1.0).abs() < 1e-3 && (u[150][1] + 1.0).abs() < 1e-3);
+        assert_eq!(extent(&[]), None);
     }
 
     #[test]
