@@ -150,23 +150,17 @@ async fn up(cfg: RigConfig, args: &Args) -> Result<(), CliError> {
             missing.join(", ")
         );
     }
-    if cfg.topology.is_robot() {
-        // A continuous decoupled goal for the allocator, now that everyone is up.
-        let home = cfg.geometry.map_or((0.0, 0.0), |g| g.home);
-        let goal = AllocationRequest {
-            id: 1,
-            x_m: home.0,
-            y_m: home.1,
-            target: AllocationTarget::Percent(args.percent),
-        };
-        if let Ok(bytes) = encode(&goal) {
-            session
-                .put(keys.stiffness_goal(), bytes)
-                .await
-                .map_err(zenoh_err)?;
-        }
-    }
-
+    // A continuous decoupled goal for the allocator, once every joint samples: a joint that
+    // is up but still settling would hold the allocator's first commands until they are
+    // older than the clock bound, and rightly refuse them as late.
+    let home = cfg.geometry.map_or((0.0, 0.0), |g| g.home);
+    let goal = AllocationRequest {
+        id: 1,
+        x_m: home.0,
+        y_m: home.1,
+        target: AllocationTarget::Percent(args.percent),
+    };
+    let mut goal_due = cfg.topology.is_robot();
     let mut w = Watch::new(&cfg, start_ns);
     let deadline = duration.map(|d| tokio::time::Instant::now() + d);
     let ctrl_c = tokio::signal::ctrl_c();
@@ -179,6 +173,12 @@ async fn up(cfg: RigConfig, args: &Args) -> Result<(), CliError> {
             _ = tokio::time::sleep_until(sleep_until) => break,
             s = subs.0.recv_async() => if let Ok(s) = s && let Ok(m) = decode::<JointSample>(&s.payload().to_bytes()) {
                 *w.samples.entry(m.joint).or_default() += 1;
+                if goal_due && w.samples.len() == cfg.joints.len() {
+                    goal_due = false;
+                    if let Ok(bytes) = encode(&goal) {
+                        session.put(keys.stiffness_goal(), bytes).await.map_err(zenoh_err)?;
+                    }
+                }
             },
             s = subs.1.recv_async() => if let Ok(s) = s && let Ok(m) = decode::<SimTruth>(&s.payload().to_bytes()) {
                 w.truth(&m);
