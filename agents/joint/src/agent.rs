@@ -383,10 +383,24 @@ pub async fn run(
         Ok(a) => a,
         Err(e) => return Err(fault(&session, &mut served, Some(&mut board), e.into()).await),
     };
+    // A rate the board's read cycle cannot keep is said loudly, before the first tick.
+    let rate_hz = opts.cfg.rate_hz;
+    let pace = match board.call(move |b| b.pace(rate_hz)).await {
+        Ok(Ok(p)) => p,
+        Ok(Err(e)) | Err(e) => {
+            return Err(fault(&session, &mut served, Some(&mut board), e.into()).await);
+        }
+    };
+    if let Some(p) = &pace {
+        eprintln!("rig-joint: {p}");
+    }
     for (joint, actuator) in served.iter_mut().zip(actuators) {
         joint.actuator = actuator;
         joint.guard = JointGuard::new(joint.index, joint.limits, actuator);
-        let text = format!("joint {} up ({} backend)", joint.name, board.name());
+        let mut text = format!("joint {} up ({} backend)", joint.name, board.name());
+        if let Some(p) = &pace {
+            text.push_str(&format!("; {p}"));
+        }
         joint.status(&session, JointState::Ok, text).await?;
     }
 

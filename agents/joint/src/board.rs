@@ -98,6 +98,14 @@ pub trait JointBoard: Send {
     fn reads_the_past(&self) -> bool;
     /// Every joint's reading at rig time `t` [s], `dt` [s] after the previous reading.
     fn read(&mut self, t: f64, dt: f64) -> Result<Vec<Reading>, BoardError>;
+    /// Before the first tick: `Some` when the board's read cycle cannot keep `rate_hz`
+    /// (hardware times a few cycles; a simulation always can).
+    fn pace(
+        &mut self,
+        _rate_hz: f64,
+    ) -> Result<Option<crate::hardware::pace::TooFast>, BoardError> {
+        Ok(None)
+    }
     /// Joint `k`'s stiffness actuator position now (pivot [m], stiffness motor [rad]).
     fn actuator(&self, k: usize) -> f64;
     /// Joint `k`'s stiffness actuator goal (the guard has checked it).

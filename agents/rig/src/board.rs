@@ -174,14 +174,7 @@ pub fn bench_bus(a: &BusArgs) -> Result<(), CliError> {
         })
         .collect();
     // The buses are read one after the other, the bridges likewise, both groups at once.
-    let group = |bridge: bool| -> f64 {
-        loads
-            .iter()
-            .filter(|l| l.bridge == bridge)
-            .map(|l| wire_s(l.bytes, l.baud) * 1e6)
-            .sum()
-    };
-    let wire_us = group(false).max(group(true));
+    let wire_us = rig_joint::hardware::wire_s_per_cycle(&loads) * 1e6;
     let transactions: usize = loads.iter().map(|l| l.transactions).sum();
     let out = json!({
         "board": kind,
@@ -230,5 +223,15 @@ pub fn bench_bus(a: &BusArgs) -> Result<(), CliError> {
         1e6 / wire_us,
         cfg.rate_hz
     );
+    let cycles_s: Vec<f64> = us.iter().map(|u| u * 1e-6).collect();
+    match rig_joint::hardware::pace::verdict(cfg.rate_hz, wire_us * 1e-6, &cycles_s) {
+        Some(too_fast) => println!("{too_fast}"),
+        None => println!(
+            "rate_hz {} fits: the median cycle is {:.0} µs of the tick's {:.0} µs",
+            cfg.rate_hz,
+            cycle.p50,
+            1e6 / cfg.rate_hz
+        ),
+    }
     Ok(())
 }

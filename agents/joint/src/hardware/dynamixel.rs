@@ -23,6 +23,7 @@ use rig_dynamixel::encoder::{EncoderBridge, EncoderError};
 use rig_dynamixel::servos::{BusError, BusStats, Servo, ServoBus};
 use thiserror::Error;
 
+use super::pace;
 use super::plan::{BoardPlan, PlannedJoint};
 use crate::board::{Applied, BoardError, JointBoard, Reading, SafeState, WatchdogAction};
 
@@ -68,6 +69,19 @@ pub struct WireLoad {
     pub transactions: usize,
     /// An encoder bridge (read at the same time as the buses), or a servo bus.
     pub bridge: bool,
+}
+
+/// The wire's time for one read cycle [s]: the buses one after the other, the bridges
+/// likewise, both groups at once (the bridges are read on their own thread).
+pub fn wire_s_per_cycle(loads: &[WireLoad]) -> f64 {
+    let group = |bridge: bool| -> f64 {
+        loads
+            .iter()
+            .filter(|l| l.bridge == bridge)
+            .map(|l| rig_dynamixel::timing::wire_s(l.bytes, l.baud))
+            .sum()
+    };
+    group(false).max(group(true))
 }
 
 /// A bus and the indices of its joints.
@@ -354,6 +368,22 @@ impl JointBoard for DynamixelBoard {
         Ok(self.read_cycle(dt)?)
     }
 
+    /// Times [`pace::TIMED_CYCLES`] read cycles against the tick (and the wire's own time).
+    fn pace(&mut self, rate_hz: f64) -> Result<Option<pace::TooFast>, BoardError> {
+        let dt = 1.0 / rate_hz;
+        let mut cycles = Vec::with_capacity(pace::TIMED_CYCLES);
+        for _ in 0..pace::TIMED_CYCLES {
+            let t = std::time::Instant::now();
+            self.read_cycle(dt)?;
+            cycles.push(t.elapsed().as_secs_f64());
+        }
+        Ok(pace::verdict(
+            rate_hz,
+            wire_s_per_cycle(&self.wire_per_cycle()),
+            &cycles,
+        ))
+    }
+
     /// Joint `k`'s pivot displacement [m] as last read.
     fn actuator(&self, k: usize) -> f64 {
         self.joints.get(k).map_or(f64::NAN, |j| j.pivot_m)
@@ -511,6 +541,22 @@ mod tests {
         assert_eq!(w[0].bytes, sync_read_bytes(4, 4) + read1_bytes(2));
         assert_eq!((w[0].replies, w[0].transactions), (5, 2));
         assert_eq!(w[1].bytes, 2 + 3 + 3 * 4);
+        assert!(b.torque_off_everywhere().is_empty());
+    }
+
+    #[test]
+    fn a_rate_the_read_cycle_cannot_keep_is_said_with_what_fits() {
+        let cfg = rig_config::examples::load("parallel").unwrap();
+        let (_v, mut b) = board(&cfg);
+        // A 10 µs tick: no cycle of a real bus (pseudo-terminals here) is that short.
+        let v = b.pace(100_000.0).unwrap().expect("too fast");
+        assert_eq!(v.timed, pace::TIMED_CYCLES);
+        assert!(v.cycle_s > 1e-5 && v.sustainable_hz() < 100_000.0, "{v:?}");
+        // The wire at the config's baud (the virtual lines have none of their own).
+        assert_eq!(v.wire_s, wire_s_per_cycle(&b.wire_per_cycle()));
+        assert!(v.to_string().contains("rate_hz = 100000"), "{v}");
+        // 1 Hz: any cycle fits.
+        assert_eq!(b.pace(1.0).unwrap(), None);
         assert!(b.torque_off_everywhere().is_empty());
     }
 
