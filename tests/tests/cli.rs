@@ -108,6 +108,64 @@ fn a_stiffness_goal_that_is_not_a_percentage_of_the_range_is_refused() {
 }
 
 #[test]
+fn rig_allocate_live_says_when_no_allocator_answers_and_network_flags_need_live() {
+    let cfg = config();
+    let cfg = cfg.to_str().unwrap();
+    // A port nobody listens on: the session opens, nobody answers.
+    let nobody = format!("tcp/127.0.0.1:{}", common::free_port());
+    let t0 = Instant::now();
+    let (code, err) = run(
+        "rig",
+        &[
+            "allocate",
+            "--config",
+            cfg,
+            "--percent",
+            "50",
+            "--live",
+            "--within",
+            "1",
+            "--connect",
+            &nobody,
+        ],
+    );
+    assert_eq!(code, Some(1), "{err}");
+    assert!(
+        err.contains("no allocator answered on rig/parallel/allocate within 1 s"),
+        "{err}"
+    );
+    assert!(t0.elapsed() < Duration::from_secs(20), "{:?}", t0.elapsed());
+    let (code, err) = run(
+        "rig",
+        &[
+            "allocate",
+            "--config",
+            cfg,
+            "--percent",
+            "50",
+            "--connect",
+            &nobody,
+        ],
+    );
+    assert_eq!(code, Some(1), "{err}");
+    assert!(err.contains("they need --live"), "{err}");
+    let (code, err) = run(
+        "rig",
+        &[
+            "allocate",
+            "--config",
+            cfg,
+            "--percent",
+            "50",
+            "--within",
+            "3",
+        ],
+    );
+    assert_eq!(code, Some(2), "{err}");
+    assert!(err.contains("--live"), "{err}");
+}
+
+#[test]
 fn bytes_that_are_no_recording_are_an_error_and_a_report_never_makes_directories() {
     let dir = common::test_dir("cli-files");
     // Random bytes are not a recording: refused with status 1, naming the file.

@@ -3,7 +3,8 @@
 //! computers of the five-bar's two chains. Each runs `rig launch --machine` from the config
 //! alone. The chains are linked only to the host, so every sample crosses a veth pair into the
 //! host's hub. The host's recorder holds the run; the end-effector force it recorded is scored
-//! against the simulated truth it also recorded.
+//! against the simulated truth it also recorded. An operator on chain 1 asks the host's
+//! allocator for a stiffness (`rig allocate --live`): its commands reach all four joints.
 //!
 //! Where namespaces cannot be made (not root, no `ip`), the test says so; under CI (`CI` set)
 //! it fails rather than skipping.
@@ -204,6 +205,40 @@ fn three_machines_in_network_namespaces_run_the_plan_and_estimate_the_force_acro
             .unwrap();
         launched.push((machine.to_string(), child, log));
     }
+    // An operator on the board computer of chain 1 asks the host's allocator for 60 % of the
+    // stiffness range: the allocator, on the host, commands all four joints — j3 and j4 across
+    // the other veth pair. Retried while the machines come up.
+    let t_ask = Instant::now();
+    let answer = loop {
+        std::thread::sleep(Duration::from_secs(1));
+        let o = Command::new("ip")
+            .args(["netns", "exec", &ns[1]])
+            .arg(&rig)
+            .args(["allocate", "--config"])
+            .arg(&cfg_path)
+            .args(["--live", "--percent", "60", "--json", "--within", "2"])
+            .args(["--connect", "tcp/10.201.1.1:7447"])
+            .output()
+            .unwrap();
+        if o.status.success() {
+            break serde_json::from_slice::<serde_json::Value>(&o.stdout).unwrap();
+        }
+        // Not answered yet (exit 1) is retried; an answer that refuses is not.
+        assert!(
+            o.status.code() == Some(1) && t_ask.elapsed() < Duration::from_secs(10),
+            "rig allocate --live from chain1: {}",
+            String::from_utf8_lossy(&o.stderr)
+        );
+    };
+    assert_eq!(answer["feasible"], true, "{answer}");
+    let pivots: Vec<f64> = answer["pivot_m"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|v| v.as_f64().unwrap())
+        .collect();
+    assert_eq!(pivots.len(), 4, "{answer}");
+
     for (machine, child, log) in &mut launched {
         let status = wait_or_kill(child, Duration::from_secs(60));
         let text = std::fs::read_to_string(&*log).unwrap_or_default();
@@ -233,6 +268,30 @@ fn three_machines_in_network_namespaces_run_the_plan_and_estimate_the_force_acro
                 .or_default()
                 .insert(joint.parse().unwrap(), tau.parse().unwrap());
         }
+    }
+    // Every pivot went where the allocator said (the commands crossed the veths), from
+    // somewhere else (it was the command that moved it).
+    for (k, want) in pivots.iter().enumerate() {
+        let c = csv_columns(&csv.join(format!("rig.parallel.joint.j{}.sample.csv", k + 1)));
+        let pivot: Vec<f64> = c["pivot_m"].iter().filter_map(|v| v.parse().ok()).collect();
+        let (first, last) = (pivot[0], pivot[pivot.len() - 1]);
+        eprintln!(
+            "j{}: pivot {:.3} mm at the start, {:.3} mm at the end, {:.3} mm allocated",
+            k + 1,
+            first * 1e3,
+            last * 1e3,
+            want * 1e3
+        );
+        assert!(
+            (last - want).abs() < 0.1e-3,
+            "j{}: {last} m, allocated {want} m",
+            k + 1
+        );
+        assert!(
+            (first - want).abs() > 1e-3,
+            "j{}: already at {first} m",
+            k + 1
+        );
     }
     let ee = csv_columns(&csv.join("rig.parallel.estimate.ee.csv"));
     let scored: Vec<(u64, f64, f64)> = ee["t_ns"]

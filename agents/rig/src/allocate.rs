@@ -5,6 +5,10 @@
 //! the lever's inverse (rig_model::lever). Nothing is clamped silently: an unreachable pose, a
 //! target outside the range or a target that cannot be met exactly is an error (exit 3),
 //! printed with the best compromise.
+//!
+//! With `--live` the rig's running allocator is asked instead (the `allocate` query): it solves
+//! the same problem, commands the joints and answers; this is how an operator moves a rig that
+//! `rig launch` started, from any machine that reaches it.
 
 use std::path::PathBuf;
 
@@ -33,6 +37,17 @@ pub struct Args {
     /// Print one JSON object instead of the table
     #[arg(long)]
     json: bool,
+    /// Ask the rig's running allocator instead of solving here: it solves, commands the joints
+    /// (the pivots move) and answers, and its answer is printed. Joins the rig as the config's
+    /// [zenoh] says, or as --connect/--listen/--mode say (from another machine: --connect
+    /// tcp/HOST:7447, HOST the machine whose hub the allocator's machine listens on)
+    #[arg(long)]
+    live: bool,
+    /// How long to wait for the allocator's answer with --live
+    #[arg(long, value_name = "SECONDS", default_value = "5", value_parser = rig_runtime::cli::positive_seconds, requires = "live")]
+    within: std::time::Duration,
+    #[command(flatten)]
+    net: rig_runtime::NetArgs,
 }
 
 fn numbers(s: &str) -> Result<Vec<f64>, String> {
@@ -109,6 +124,14 @@ pub fn run(args: &Args) -> Result<(), CliError> {
         (None, Some(p)) => Target::Percent(p),
         (None, None) => return Err(CliError::Unsupported("give --k or --percent".into())),
     };
+    let net = &args.net;
+    if args.live {
+        return live(args, &cfg, at_m, target);
+    } else if !(net.listen.is_empty() && net.connect.is_empty() && net.mode.is_none()) {
+        return Err(CliError::Unsupported(
+            "--listen, --connect and --mode join a running rig: they need --live".into(),
+        ));
+    }
     let plan = allocate(&cfg, at_m, target).map_err(|e| match e {
         PlanError::Unsupported(m) => {
             CliError::Unsupported(format!("{}: {m}", args.config.display()))
@@ -129,6 +152,93 @@ pub fn run(args: &Args) -> Result<(), CliError> {
     match failure {
         None => Ok(()),
         Some(msg) => Err(CliError::Infeasible(msg)),
+    }
+}
+
+/// `--live`: the request to the rig's allocator (`rig/<rig>/allocate`), its answer printed.
+fn live(args: &Args, cfg: &RigConfig, at_m: (f64, f64), target: Target) -> Result<(), CliError> {
+    use rig_protocol::{
+        AllocationRequest, AllocationResult, AllocationTarget, Keys, decode, encode,
+    };
+    let keys = Keys::new(&cfg.name)?;
+    let req = AllocationRequest {
+        // Distinct across operators and runs: the answer names it.
+        id: rig_runtime::now_ns(),
+        x_m: at_m.0,
+        y_m: at_m.1,
+        target: match target {
+            Target::Stiffness(k) => AllocationTarget::Stiffness(rig_protocol::StiffnessTriple {
+                xx: k.xx,
+                xy: k.xy,
+                yy: k.yy,
+            }),
+            Target::Percent(p) => AllocationTarget::Percent(p),
+        },
+    };
+    let bytes = encode(&req).map_err(|e| CliError::Invalid(format!("the request: {e}")))?;
+    let within = args.within;
+    let answer: Result<Vec<u8>, String> = rig_runtime::tokio_runtime(Some(1))?.block_on(async {
+        let session = rig_runtime::open(&cfg.zenoh, &args.net.overrides()).await?;
+        let replies = session
+            .get(keys.allocate())
+            .payload(bytes)
+            .timeout(within)
+            .await
+            .map_err(rig_runtime::zenoh_err)?;
+        let answer = match tokio::time::timeout(within, replies.recv_async()).await {
+            Ok(Ok(reply)) => match reply.result() {
+                Ok(sample) => Ok(sample.payload().to_bytes().into_owned()),
+                Err(e) => Err(format!(
+                    "the allocator refused the request: {}",
+                    String::from_utf8_lossy(&e.payload().to_bytes())
+                )),
+            },
+            _ => Err(format!(
+                "no allocator answered on {} within {} s: is `rig allocator` (or `rig launch` on \
+                 the machine that runs it) up, and does --connect reach its machine's hub?",
+                keys.allocate(),
+                within.as_secs_f64()
+            )),
+        };
+        let _ = session.close().await;
+        Ok::<_, CliError>(answer)
+    })?;
+    let result = decode::<AllocationResult>(&answer.map_err(CliError::Rig)?)
+        .map_err(|e| CliError::Rig(format!("the allocator's answer: {e}")))?;
+    if args.json {
+        println!(
+            "{}",
+            serde_json::to_string_pretty(&result)
+                .map_err(|e| CliError::Io(std::io::Error::other(e)))?
+        );
+    } else {
+        println!(
+            "the rig's allocator answered request {} ({}):",
+            result.id,
+            if result.feasible {
+                "applied: the joints are commanded"
+            } else {
+                "not applied"
+            }
+        );
+        let (w, a) = (&result.target, &result.achieved);
+        println!(
+            "  wanted   K = [{:.1} {:.1}; {:.1} {:.1}] N/m\n  achieved K = [{:.1} {:.1}; {:.1} {:.1}] N/m (residual {:.3} N/m)",
+            w.xx, w.xy, w.xy, w.yy, a.xx, a.xy, a.xy, a.yy, result.residual
+        );
+        for ((j, k), d) in cfg
+            .joints
+            .iter()
+            .zip(&result.k_joint_nm_per_rad)
+            .zip(&result.pivot_m)
+        {
+            println!("  {}: k = {k:.3} N·m/rad, pivot {:.3} mm", j.name, d * 1e3);
+        }
+    }
+    if result.feasible {
+        Ok(())
+    } else {
+        Err(CliError::Infeasible(result.error))
     }
 }
 
