@@ -95,22 +95,9 @@ fn a_pushed_end_effector_force_is_estimated_within_the_simulators_accuracy() {
     rt().block_on(async {
         let z = session(&hub).await;
         // Truths (4 kHz) and estimates (1 kHz) are collected in callbacks, never left queued.
-        let truth_map = std::sync::Arc::new(std::sync::Mutex::new(common::Truths::new()));
+        let (truth_map, _truths) = common::collect_truths(&z).await;
         let ee_list = std::sync::Arc::new(std::sync::Mutex::new(Vec::<EeEstimate>::new()));
-        let (tm, el) = (truth_map.clone(), ee_list.clone());
-        let _truths = z
-            .declare_subscriber("rig/parallel/sim/joint/*/truth")
-            .callback(move |t| {
-                if let Ok(m) = decode::<SimTruth>(&t.payload().to_bytes()) {
-                    tm.lock()
-                        .unwrap()
-                        .entry(m.t_acq_ns)
-                        .or_default()
-                        .insert(m.joint, m.torque_nm);
-                }
-            })
-            .await
-            .unwrap();
+        let el = ee_list.clone();
         let _ees = z
             .declare_subscriber("rig/parallel/estimate/ee")
             .callback(move |e| {

@@ -265,22 +265,9 @@ fn a_flood_of_payloads_that_must_not_be_believed_is_counted_and_the_rig_keeps_es
     let mut sent = Sent::default();
     let (flood_from, flood_to) = rt().block_on(async {
         let z = common::session(&[], &[&hub]).await;
-        let truths = Arc::new(Mutex::new(common::Truths::new()));
+        let (truths, _truths) = common::collect_truths(&z).await;
         let ees = Arc::new(Mutex::new(Vec::<(u64, f64, f64)>::new()));
-        let (tm, el) = (truths.clone(), ees.clone());
-        let _truths = z
-            .declare_subscriber("rig/parallel/sim/joint/*/truth")
-            .callback(move |t| {
-                if let Ok(m) = decode::<SimTruth>(&t.payload().to_bytes()) {
-                    tm.lock()
-                        .unwrap()
-                        .entry(m.t_acq_ns)
-                        .or_default()
-                        .insert(m.joint, m.torque_nm);
-                }
-            })
-            .await
-            .unwrap();
+        let el = ees.clone();
         let _ees = z
             .declare_subscriber("rig/parallel/estimate/ee")
             .callback(move |e| {

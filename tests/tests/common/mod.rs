@@ -173,6 +173,33 @@ pub fn interrupt_and_wait(p: &mut Proc, what: &str) {
 /// Each simulated joint's true torque by acquisition time: `t_acq_ns → (joint index → N·m)`.
 pub type Truths = std::collections::BTreeMap<u64, std::collections::BTreeMap<u16, f64>>;
 
+/// Every simulated joint truth of the example rig that reaches `z`, gathered in a callback
+/// (4 kHz of them must never queue): the map they go into, and the subscriber that feeds it
+/// while it lives.
+pub async fn collect_truths(
+    z: &rig_runtime::zenoh::Session,
+) -> (
+    std::sync::Arc<std::sync::Mutex<Truths>>,
+    rig_runtime::zenoh::pubsub::Subscriber<()>,
+) {
+    let truths = std::sync::Arc::new(std::sync::Mutex::new(Truths::new()));
+    let tm = truths.clone();
+    let sub = z
+        .declare_subscriber("rig/parallel/sim/joint/*/truth")
+        .callback(move |t| {
+            if let Ok(m) = rig_protocol::decode::<rig_protocol::SimTruth>(&t.payload().to_bytes()) {
+                tm.lock()
+                    .unwrap()
+                    .entry(m.t_acq_ns)
+                    .or_default()
+                    .insert(m.joint, m.torque_nm);
+            }
+        })
+        .await
+        .unwrap();
+    (truths, sub)
+}
+
 /// The end-effector force estimates `(t_ns, fx, fy)` of the example parallel robot scored
 /// against the force its simulated hand pushed with (the stroke world started at `start`
 /// [ns]), at the ticks where all four joints' truths are known: (RMSE [N], peak [N], count).
