@@ -37,7 +37,7 @@ pub enum Topology {
 }
 
 /// Most joints a bench rig may have.
-pub const MAX_BENCH_JOINTS: usize = 64;
+pub const MAX_BENCH_JOINTS: usize = 256;
 
 impl Topology {
     /// How many joints the topology takes: (fewest, most).

@@ -94,7 +94,7 @@ enum Boards {
 
 #[derive(Debug, clap::Args)]
 struct ThroughputArgs {
-    /// Simulated joints on the board (1 to 64)
+    /// Simulated joints on the board (1 to 256)
     #[arg(long, default_value_t = 64)]
     joints: usize,
     /// Sample rate of every joint [Hz]
