@@ -37,14 +37,27 @@ fn triple(k: OperationalStiffness) -> StiffnessTriple {
     }
 }
 
-fn target_of(t: AllocationTarget) -> Target {
-    match t {
-        AllocationTarget::Stiffness(k) => Target::Stiffness(OperationalStiffness {
-            xx: k.xx,
-            xy: k.xy,
-            yy: k.yy,
-        }),
-        AllocationTarget::Percent(p) => Target::Percent(p),
+/// A request's target as the plan takes it.
+impl From<AllocationTarget> for Target {
+    fn from(t: AllocationTarget) -> Self {
+        match t {
+            AllocationTarget::Stiffness(k) => Target::Stiffness(OperationalStiffness {
+                xx: k.xx,
+                xy: k.xy,
+                yy: k.yy,
+            }),
+            AllocationTarget::Percent(p) => Target::Percent(p),
+        }
+    }
+}
+
+/// A plan's target as a request carries it (`rig allocate --live`).
+impl From<Target> for AllocationTarget {
+    fn from(t: Target) -> Self {
+        match t {
+            Target::Stiffness(k) => AllocationTarget::Stiffness(triple(k)),
+            Target::Percent(p) => AllocationTarget::Percent(p),
+        }
     }
 }
 
@@ -141,7 +154,7 @@ impl AllocatorCore {
         req: &AllocationRequest,
         now_ns: u64,
     ) -> (AllocationResult, Vec<JointCommand>) {
-        self.apply(req.id, (req.x_m, req.y_m), target_of(req.target), now_ns)
+        self.apply(req.id, (req.x_m, req.y_m), req.target.into(), now_ns)
     }
 
     /// A continuous goal: kept and re-applied as the pose changes. The request's position is
@@ -151,9 +164,9 @@ impl AllocatorCore {
         req: &AllocationRequest,
         now_ns: u64,
     ) -> (AllocationResult, Vec<JointCommand>) {
-        self.goal = Some(target_of(req.target));
+        self.goal = Some(req.target.into());
         self.pose = (req.x_m, req.y_m);
-        self.apply(req.id, self.pose, target_of(req.target), now_ns)
+        self.apply(req.id, self.pose, req.target.into(), now_ns)
     }
 
     /// An end-effector estimate: re-allocate if a goal is set and the pose moved enough.
@@ -182,6 +195,25 @@ mod tests {
 
     fn core() -> AllocatorCore {
         AllocatorCore::new(rig_config::examples::load("parallel").unwrap())
+    }
+
+    #[test]
+    fn a_target_survives_the_wire_both_ways() {
+        let k = OperationalStiffness {
+            xx: 800.0,
+            xy: -12.5,
+            yy: 900.0,
+        };
+        for t in [Target::Stiffness(k), Target::Percent(37.5)] {
+            let wire: AllocationTarget = t.into();
+            match (Target::from(wire), t) {
+                (Target::Stiffness(a), Target::Stiffness(b)) => {
+                    assert_eq!((a.xx, a.xy, a.yy), (b.xx, b.xy, b.yy));
+                }
+                (Target::Percent(a), Target::Percent(b)) => assert_eq!(a, b),
+                (a, b) => panic!("{a:?} came back from {b:?}"),
+            }
+        }
     }
 
     #[test]

@@ -157,23 +157,14 @@ pub fn run(args: &Args) -> Result<(), CliError> {
 
 /// `--live`: the request to the rig's allocator (`rig/<rig>/allocate`), its answer printed.
 fn live(args: &Args, cfg: &RigConfig, at_m: (f64, f64), target: Target) -> Result<(), CliError> {
-    use rig_protocol::{
-        AllocationRequest, AllocationResult, AllocationTarget, Keys, decode, encode,
-    };
+    use rig_protocol::{AllocationRequest, AllocationResult, Keys, decode, encode};
     let keys = Keys::new(&cfg.name)?;
     let req = AllocationRequest {
         // Distinct across operators and runs: the answer names it.
         id: rig_runtime::now_ns(),
         x_m: at_m.0,
         y_m: at_m.1,
-        target: match target {
-            Target::Stiffness(k) => AllocationTarget::Stiffness(rig_protocol::StiffnessTriple {
-                xx: k.xx,
-                xy: k.xy,
-                yy: k.yy,
-            }),
-            Target::Percent(p) => AllocationTarget::Percent(p),
-        },
+        target: target.into(),
     };
     let bytes = encode(&req).map_err(|e| CliError::Invalid(format!("the request: {e}")))?;
     let within = args.within;
