@@ -425,19 +425,11 @@ impl Scene {
         // measured): the loop is a few per cent of the torque, invisible on the raw line.
         // Then both into ±1 by the measured curve's box: Rerun's 2D view has equal axes, and a
         // loop of a few mN·m against degrees of deflection is flat at any zoom.
-        let (measured, model) = (view.measured.points(), view.model.points());
-        let reference = if measured.is_empty() {
-            &model
-        } else {
-            &measured
-        };
-        let line = trail::best_line(reference).unwrap_or((0.0, 0.0));
-        let unit = trail::extent(&trail::minus_line(reference, line)).unwrap_or((0.0, 1.0, 1.0));
-        let shown = |pts: &[[f32; 2]]| trail::to_unit_box(&trail::minus_line(pts, line), unit);
+        let (measured, model) = trail::loop_view(&view.measured.points(), &view.model.points());
         if !measured.is_empty() {
             rec.log(
                 format!("{p}/measured"),
-                &LineStrips2D::new([shown(&measured)])
+                &LineStrips2D::new([measured])
                     .with_colors([rgb(TRUTH)])
                     .with_radii([rerun::Radius::new_ui_points(2.5)]),
             )?;
@@ -445,7 +437,7 @@ impl Scene {
         if !model.is_empty() {
             rec.log(
                 format!("{p}/model"),
-                &LineStrips2D::new([shown(&model)])
+                &LineStrips2D::new([model])
                     .with_colors([rgb(ESTIMATE)])
                     .with_radii([rerun::Radius::new_ui_points(1.0)]),
             )?;

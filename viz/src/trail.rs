@@ -121,6 +121,17 @@ pub fn to_unit_box(points: &[[f32; 2]], (xc, xh, yh): (f32, f32, f32)) -> Vec<[f
         .collect()
 }
 
+/// A hysteresis loop as the view draws it: both curves minus the reference's best line (the
+/// measured curve's, or the model's when nothing is measured), then into ±1 by the
+/// reference's box.
+pub fn loop_view(measured: &[[f32; 2]], model: &[[f32; 2]]) -> (Vec<[f32; 2]>, Vec<[f32; 2]>) {
+    let by_model = measured.is_empty();
+    let line = best_line(if by_model { model } else { measured }).unwrap_or((0.0, 0.0));
+    let (measured, model) = (minus_line(measured, line), minus_line(model, line));
+    let unit = extent(if by_model { &model } else { &measured }).unwrap_or((0.0, 1.0, 1.0));
+    (to_unit_box(&measured, unit), to_unit_box(&model, unit))
+}
+
 /// Lets one event through per `period_ns` of the message clock.
 #[derive(Debug, Clone, Copy)]
 pub struct Gate {
@@ -192,6 +203,11 @@ mod tests {
         assert!((u[0][0] + 1.0).abs() < 1e-6 && (u[100][0] - 1.0).abs() < 1e-6);
         assert!((u[10][1] - 1.0).abs() < 1e-3 && (u[150][1] + 1.0).abs() < 1e-3);
         assert_eq!(extent(&[]), None);
+        // The view: the measured curve sets line and box; the model is drawn in the same
+        // frame, or sets them itself when nothing is measured.
+        assert_eq!(loop_view(&pts, &pts), (u.clone(), u.clone()));
+        let (m, d) = loop_view(&[], &pts);
+        assert!(m.is_empty() && d == u);
     }
 
     #[test]
