@@ -1044,15 +1044,11 @@ fn malformed_floods_are_counted_in_full_but_said_in_few_lines_and_a_command_off_
         let text = std::fs::read_to_string(log).unwrap();
         let said = text.lines().filter(|l| l.contains(what)).count();
         assert!((1..=4).contains(&said), "{said} lines for {FLOOD}:\n{text}");
-        let counted: u64 = text
-            .lines()
-            .filter(|l| l.starts_with(report))
-            .find_map(|l| {
-                let part = l.split(", ").find(|p| p.ends_with(" malformed"))?;
-                part.trim_end_matches(" malformed").parse().ok()
-            })
-            .unwrap_or_else(|| panic!("no malformed count in:\n{text}"));
-        assert_eq!(counted, FLOOD as u64, "{text}");
+        assert_eq!(
+            common::report_count(log, report, "malformed"),
+            FLOOD as u64,
+            "{text}"
+        );
     }
     let text = std::fs::read_to_string(&joint_log).unwrap();
     assert!(

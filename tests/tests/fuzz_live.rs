@@ -13,7 +13,6 @@
 mod common;
 use common::{Proc, alive, config, free_port, rt, s, serial, spawn_logged, wait_alive};
 
-use std::path::Path;
 use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant};
 
@@ -201,21 +200,6 @@ fn payload(i: usize, rng: &mut Rng, sent: &mut Sent) -> (usize, Vec<u8>) {
     }
 }
 
-/// The number before `label` in the report line of `log` that starts with `report`.
-fn count(log: &Path, report: &str, label: &str) -> u64 {
-    let text = std::fs::read_to_string(log).unwrap();
-    // The last such line: the report, after any "dropped …" lines of the run.
-    text.lines()
-        .rev()
-        .filter(|l| l.starts_with(report))
-        .find_map(|l| {
-            l.split([',', ';', ':', '('])
-                .map(str::trim)
-                .find_map(|p| p.strip_suffix(label)?.trim().parse().ok())
-        })
-        .unwrap_or_else(|| panic!("no \"{label}\" count after \"{report}\" in:\n{text}"))
-}
-
 #[test]
 fn a_flood_of_payloads_that_must_not_be_believed_is_counted_and_the_rig_keeps_estimating() {
     let _one_at_a_time = serial();
@@ -355,7 +339,7 @@ fn a_flood_of_payloads_that_must_not_be_believed_is_counted_and_the_rig_keeps_es
         assert!(status.success(), "{what} ended with {status}");
     }
     eprintln!("sent: {sent:?}");
-    let est_malformed = count(&est_log, "rig estimator:", "malformed");
+    let est_malformed = common::report_count(&est_log, "rig estimator:", "malformed");
     let refused: u64 = [
         "off the clock bound",
         "replayed",
@@ -363,7 +347,7 @@ fn a_flood_of_payloads_that_must_not_be_believed_is_counted_and_the_rig_keeps_es
         "on another joint's key",
     ]
     .iter()
-    .map(|l| count(&est_log, "rig estimator:", l))
+    .map(|l| common::report_count(&est_log, "rig estimator:", l))
     .sum();
     assert_eq!(
         est_malformed, sent.samples_malformed,
@@ -374,20 +358,20 @@ fn a_flood_of_payloads_that_must_not_be_believed_is_counted_and_the_rig_keeps_es
     for j in JOINTS {
         let log = dir.join(format!("{j}.log"));
         let report = format!("rig-joint {j}:");
-        malformed += count(&log, &report, "malformed");
-        rejected += count(&log, &report, "rejected");
-        accepted += count(&log, &report, "commands accepted");
+        malformed += common::report_count(&log, &report, "malformed");
+        rejected += common::report_count(&log, &report, "rejected");
+        accepted += common::report_count(&log, &report, "commands accepted");
     }
     assert_eq!(malformed, sent.commands_malformed, "joints: malformed");
     assert_eq!(rejected, sent.commands_refused, "joints: rejected");
     assert_eq!(accepted, 0, "no command of the flood was obeyed");
     assert_eq!(
-        count(&alloc_log, "rig allocator:", "malformed"),
+        common::report_count(&alloc_log, "rig allocator:", "malformed"),
         sent.allocator_malformed,
         "allocator: malformed"
     );
     assert_eq!(
-        count(&alloc_log, "rig allocator:", "commands"),
+        common::report_count(&alloc_log, "rig allocator:", "commands"),
         0,
         "the allocator, given no goal, commanded nothing"
     );

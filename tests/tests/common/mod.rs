@@ -230,3 +230,19 @@ pub fn force_error(start: u64, truth: &Truths, ee: &[(u64, f64, f64)]) -> (f64, 
     }
     ((sq / n.max(1) as f64).sqrt(), peak, n)
 }
+
+/// The number before `label` in the last line of the log `log` that starts with `report` (a
+/// role's closing report, e.g. "rig estimator: …, 3 malformed; refused: 2 replayed, …"; any
+/// "dropped …" lines of the run start alike and come before it).
+pub fn report_count(log: &Path, report: &str, label: &str) -> u64 {
+    let text = std::fs::read_to_string(log).unwrap();
+    text.lines()
+        .rev()
+        .filter(|l| l.starts_with(report))
+        .find_map(|l| {
+            l.split([',', ';', ':', '('])
+                .map(str::trim)
+                .find_map(|p| p.strip_suffix(label)?.trim().parse().ok())
+        })
+        .unwrap_or_else(|| panic!("no \"{label}\" count after \"{report}\" in:\n{text}"))
+}
