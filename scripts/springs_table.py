@@ -46,7 +46,11 @@ for line in sys.stdin:
     bias = max((abs(b["mean_residual_nm"]) for b in r["bias"]), default=0.0)
     steps = sum(int(n.split()[1]) for n in r["notes"] if n.startswith("steps:"))
     lag = next((e["params"]["delay_s"] for e in r["effects"] if e["name"] == "sensor_delay"), None)
-    tare = "; ".join(f"{t['torque_zero']:+.3f} N·m, {t['deflection_zero'] * 1e3:+.2f} mrad" for t in r["tare"]) if isinstance(r["tare"], list) and r["tare"] else "none"
+    tare = "; ".join(
+        f"{t['torque_zero']:+.3f} N·m, {t['deflection_zero'] * 1e3:+.2f} mrad"
+        + (f", state {t['loop_state']:+.2f}" if t.get("loop_state") is not None else "")
+        for t in r["tare"]
+    ) if isinstance(r["tare"], list) and r["tare"] else "none"
     rows.append((spring, amp, fit, held, k, r["before"]["rmse"], r["tared"]["rmse"], r["after"]["rmse"], effects, bias, steps, tare))
 
 print("| spring | T [N·m] | fit / held-out test | k linear [N·m/rad] | RMSE before [N·m] | tared [N·m] | after [N·m] | before/after | effects added (held-out RMSE gain, N·m) | held-out bias [N·m] | torque steps | tare (fit file; held-out file) |")

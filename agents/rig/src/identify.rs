@@ -64,6 +64,13 @@ pub struct Args {
     /// it starts with (at least 0.5 s still) and subtracted, in fit and held-out files alike
     #[arg(long)]
     no_tare: bool,
+    /// Tare each file by its rest alone (its torque and deflection there are its zeros). By
+    /// default, with the linear spring (`--model linear`), a rest is read as a state of the loop:
+    /// the encoder's frame is kept from file to file (a held-out file whose encoder was zeroed
+    /// at its start is read from where the last fit file ended unloaded), the stop operators
+    /// start where the rest puts them, and only what the loop cannot hold is a torque zero
+    #[arg(long, conflicts_with = "no_tare")]
+    rest_tare: bool,
     /// Half-window of the centred local fits that give rates and accelerations [ms].
     /// Default: 20 for the joint-torque models; for the link equation the narrowest of 10, 20,
     /// 40, 80 that fits it within 5 % of the best on the validation blocks (narrow passes the
@@ -162,6 +169,7 @@ pub fn run(a: &Args) -> Result<(), CliError> {
         min_gain: a.min_gain,
         rate_window: a.rate_window_ms.map(|w| w * 1e-3),
         tare: !a.no_tare,
+        loop_states: !a.rest_tare,
         ..Options::default()
     };
     let holdout = if held_runs.is_empty() {
@@ -346,8 +354,18 @@ fn effect_params_json(e: &rig_model::identify::Found) -> Value {
     v
 }
 
-/// How a file's rest compares with the first file's.
+/// How a file's rest compares with the first file's, and what the rest was read as.
 fn zeros_why(t: &Tare) -> String {
+    let against = against_first(t);
+    match t.loop_state {
+        Some(lam) => format!(
+            "{against}; read as a state of the loop: its stops start at {lam:+.2} of their half-widths"
+        ),
+        None => against,
+    }
+}
+
+fn against_first(t: &Tare) -> String {
     if t.rest_shift_nm == 0.0 {
         "the reference".into()
     } else if t.within_loop {
@@ -387,6 +405,7 @@ fn tare_json(res: &Identified, off: bool) -> Value {
                     "torque_noise": num(t.torque_noise),
                     "rest_shift_nm": num(t.rest_shift_nm),
                     "within_loop": t.within_loop,
+                    "loop_state": t.loop_state.map_or(Value::Null, num),
                 })
             })
             .collect(),
@@ -586,7 +605,7 @@ fn markdown(
         sig(res.after.mae)
     ));
     if !res.tare.is_empty() {
-        s.push_str("## Tare (zeros at rest, subtracted from every file)\n\n| file | rest from [s] | rest for [s] | torque zero [N·m] | deflection zero [rad] | rest against the first file |\n|---|---|---|---|---|---|\n");
+        s.push_str("## Tare (zeros from each file's rest, subtracted)\n\n| file | rest from [s] | rest for [s] | torque zero [N·m] | deflection zero [rad] | rest against the first file |\n|---|---|---|---|---|---|\n");
         for t in &res.tare {
             s.push_str(&format!(
                 "| `{}` | {:.2} | {:.1} | {} | {} | {} |\n",

@@ -195,7 +195,10 @@ impl Shaped {
                 .iter()
                 .map(|&w| {
                     (
-                        s.per_run(|a, b| stop_operator_from(&xs[a..b], w, r * w)),
+                        s.per_run_k(|k, a, b| {
+                            let state = s.states.as_ref().map_or(r, |v| v[k]);
+                            stop_operator_from(&xs[a..b], w, state * w)
+                        }),
                         Bound::NonNegative,
                     )
                 })

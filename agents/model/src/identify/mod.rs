@@ -10,11 +10,13 @@
 //! | the declared model's columns on the (changed) inputs; bounded least squares | `model` |
 //! | the effects, each at its physical place (MODEL.md §6.1) | [`effects`] |
 //! | candidates and their grids; forward selection by a criterion with a known false-positive rate | `select` |
+//! | rests read as states of the loop (the linear spring's tare): each run's start state and zeros | `states` |
 //! | the held-out check, the residual's whiteness, correlations and loop orientation | `report` |
 //!
 //! The call contract: [`identify`] takes runs in SI units (checked: finite, increasing time,
 //! equal lengths), does no I/O, and returns every figure on held-out rows. `before` is the
-//! declared model on the data as given; `tared` after each run's zeros were taken at rest;
+//! declared model on the data as given; `tared` after each run's zeros were taken at rest (or
+//! its rest read as a state of the loop);
 //! `after` with the effects added. On data with nothing missing it adds nothing.
 
 pub mod effects;
@@ -23,6 +25,7 @@ mod report;
 pub mod rows;
 mod select;
 pub mod signals;
+mod states;
 pub mod stats;
 
 use crate::lever::LeverVsa;
@@ -110,6 +113,11 @@ pub struct Options {
     /// Take each run's torque and deflection zeros from the rest it starts with (joint-torque
     /// models; the link equation's torque at rest is gravity's, so it is never tared).
     pub tare: bool,
+    /// With the tare, read each rest as a state of the loop where the rule applies (the linear
+    /// spring, every run at rest; see [`states`]): no deflection zero, the stops started where
+    /// the rest puts them, only what the loop cannot hold a torque zero. Off: each rest's
+    /// torque and deflection are the run's zeros.
+    pub loop_states: bool,
 }
 
 impl Default for Options {
@@ -124,6 +132,7 @@ impl Default for Options {
             max_delay: 0.1,
             rate_window: None,
             tare: true,
+            loop_states: true,
         }
     }
 }
@@ -362,7 +371,41 @@ pub fn identify(
             .map(|(k, r)| apply_tare(r, &tare[first + k]))
             .collect()
     };
-    let (mut p, base) = if tare.is_empty() {
+    // Or the rests are states of the loop: the runs as measured (a held-out run zeroed at its
+    // start read in the fit run's frame), each run's state and torque zero set by its rest.
+    let loop_rests = if opts.loop_states && !tare.is_empty() {
+        states::rests(opts.model, &raw.runs)
+    } else {
+        None
+    };
+    // One frame for every run, its zero at the first fit run's rest (where a gap or a stop is
+    // centred): each run's deflection is shifted by `frame[k]`.
+    let frame: Vec<f64> = match &loop_rests {
+        Some(rests) => {
+            let x0 = rests[0].deflection;
+            let held_shift = states::continuity(fit_runs, held, before.part(0)[0]);
+            fit_runs
+                .iter()
+                .map(|_| -x0)
+                .chain(held_shift.iter().map(|d| d - x0))
+                .collect()
+        }
+        None => vec![],
+    };
+    let (mut p, base) = if loop_rests.is_some() {
+        let shift = |runs: &[Run], first: usize| -> Vec<Run> {
+            runs.iter()
+                .enumerate()
+                .map(|(k, r)| states::shifted(r, frame[first + k]))
+                .collect()
+        };
+        let (fit_s, held_s) = (shift(fit_runs, 0), shift(held, fit_runs.len()));
+        let mut p = Problem::new(&fit_s, &held_s, &holdout, opts);
+        p.set_rate_window(window);
+        p.loop_rests = states::rests(opts.model, &p.runs);
+        let base = states::settle(&mut p, &[], &rows)?;
+        (p, base)
+    } else if tare.is_empty() {
         (raw.clone(), before.clone())
     } else {
         let (fit_t, held_t) = (tared(fit_runs, 0), tared(held, fit_runs.len()));
@@ -407,8 +450,16 @@ pub fn identify(
         not_added,
     } = vetted;
     p.restoring = curve;
+    let after = states::settle(&mut p, &chosen, &rows)?;
     let sig = p.signals(Transform::of(&chosen));
-    let after = fit(&sig, &chosen, &p.tau, &rows.fit).ok_or(IdentifyError::Solve)?;
+    if let Some(states) = p.states.as_ref().filter(|_| p.loop_rests.is_some()) {
+        // What the rule took as each run's zeros, and the state it read at rest.
+        for (k, t) in tare.iter_mut().enumerate() {
+            t.torque_zero = p.shifts[k];
+            t.deflection_zero = -frame[k];
+            t.loop_state = Some(states[k]);
+        }
+    }
     let base_coefs = after.part(0).to_vec();
     // A torque zero at rest that stands out of the noise, the same in every run, is a sensor
     // offset, calibrated by the tare: named where the declared model has no constant to hold

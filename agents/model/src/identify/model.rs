@@ -91,14 +91,22 @@ pub struct Signals {
     pub(crate) elastic: Vec<Vec<f64>>,
     /// Row ranges of the runs.
     bounds: Vec<(usize, usize)>,
+    /// Each run's hysteresis start state, a fraction of each stop's half-width, when the rests
+    /// set it (see [`super::states`]); `None`: the hysteresis candidate's shape, for every run.
+    pub(crate) states: Option<Vec<f64>>,
 }
 
 impl Signals {
     /// A column built run by run (stateful operators restart at each run).
     pub(crate) fn per_run(&self, f: impl Fn(usize, usize) -> Vec<f64>) -> Vec<f64> {
+        self.per_run_k(|_, a, b| f(a, b))
+    }
+
+    /// As [`Self::per_run`], told the run's index too.
+    pub(crate) fn per_run_k(&self, f: impl Fn(usize, usize, usize) -> Vec<f64>) -> Vec<f64> {
         let mut out = Vec::with_capacity(self.x.len());
-        for &(a, b) in &self.bounds {
-            out.extend(f(a, b));
+        for (k, &(a, b)) in self.bounds.iter().enumerate() {
+            out.extend(f(k, a, b));
         }
         out
     }
@@ -127,6 +135,7 @@ impl Problem {
             base: vec![],
             elastic: vec![],
             bounds: self.bounds.clone(),
+            states: self.states.clone(),
         };
         let mut q_all = Vec::new();
         for (k, r) in self.runs.iter().enumerate() {

@@ -37,6 +37,10 @@ pub struct Tare {
     /// Whether this run's rest lies within the loop the first fit run traced at its angle:
     /// friction can hold the spring there, so part of the shift may be a load, not a zero.
     pub within_loop: bool,
+    /// The state of the loop at rest (the fraction of each stop's half-width its operators
+    /// start from) when the rest is read as a state of the loop ([`super::states`]): then the
+    /// zeros above are what the loop cannot hold (torque) and the frame's shift (deflection).
+    pub loop_state: Option<f64>,
     /// The samples of the rest, within the run.
     pub(crate) rest: (usize, usize),
 }
@@ -128,6 +132,7 @@ pub fn tare(runs: &[Run]) -> (Vec<Tare>, Option<String>) {
                 from_s: r.t[rest.start] - r.t[0],
                 rest_shift_nm: 0.0,
                 within_loop: false,
+                loop_state: None,
                 rest: (rest.start, rest.end),
                 window_s: rest.window_s,
                 torque_zero: rest.torque,
@@ -209,6 +214,12 @@ pub(crate) struct Problem {
     pub widths: Vec<f64>,
     /// How many runs are fit runs (the rest are held out).
     pub fit_runs: usize,
+    /// Each run's rest, when the rests are read as states of the loop ([`super::states`]).
+    pub loop_rests: Option<Vec<Rest>>,
+    /// Each run's hysteresis start state (set by [`super::states::settle`]).
+    pub states: Option<Vec<f64>>,
+    /// Each run's torque zero under the loop-state rule: what the loop cannot hold at rest.
+    pub shifts: Vec<f64>,
 }
 
 impl Problem {
@@ -267,6 +278,9 @@ impl Problem {
             restoring: None,
             widths: vec![],
             fit_runs: fit.len(),
+            loop_rests: None,
+            states: None,
+            shifts: vec![],
         };
         p.set_rate_window(opts.rate_window.unwrap_or(0.02));
         // Hysteresis: stops from ten dead bands (narrower is Coulomb friction) to half the
@@ -505,6 +519,7 @@ mod tests {
             torque_noise: noise,
             rest_shift_nm: 0.0,
             within_loop: false,
+            loop_state: None,
             rest: (0, 10),
         };
         // The first run passes the angle 0 on branches 0.5 N·m either side of the model.

@@ -759,6 +759,8 @@ pub(crate) fn with_heldout_veto(
             .cloned()
             .collect();
         p.restoring = declared_curve.clone();
+        // The selection sees the fit rows only, the hysteresis shapes searched as shapes.
+        p.states = None;
         let selection = forward(p, &allowed, rows, opts, progress)?;
         let selected_curve = p.restoring.clone();
         let mut out = Vetted {
@@ -782,8 +784,8 @@ pub(crate) fn with_heldout_veto(
                     p.restoring = Some(refit_restoring(p, &trial, &rows.fit)?);
                 }
             }
-            let s = p.signals(Transform::of(&trial));
-            let f = fit(&s, &trial, &p.tau, &rows.fit).ok_or(IdentifyError::Solve)?;
+            // Each held-out run's state and zeros from its rest, when the rests are states.
+            let f = super::states::settle(p, &trial, rows)?;
             let (rss0, _) = rss_and_neff(p, &last, &rows.held);
             let (rss1, n_eff) = rss_and_neff(p, &f, &rows.held);
             if n_eff * (rss0 / rss1).ln() > HELDOUT_LR {
