@@ -15,6 +15,7 @@
 
 use std::collections::BTreeMap;
 
+use crate::clock::{ClockEvent, ClockWatch};
 use rig_config::{JointKind, RigConfig, Topology};
 use rig_model::estimator::{JointReadings, RobotEstimator};
 use rig_model::hysteresis::RestoringTorqueModel;
@@ -153,8 +154,13 @@ pub struct EstimatorCore {
     pivot_range: Vec<Option<(f64, f64)>>,
     /// Per joint: the config's `[joint.effects]`, applied to each accepted sample.
     effects: Vec<rig_config::JointEffects>,
+    /// Each board's clock against this host's, from the accepted samples.
+    clock: ClockWatch,
     pub stats: CoreStats,
 }
+
+/// How often each board's clock offset is estimated [ns].
+pub const CLOCK_WINDOW_NS: u64 = 1_000_000_000;
 
 /// How far a reported pivot may lie outside the configured travel before it is refused [m]
 /// (an encoder count or a servo's overshoot is far less).
@@ -260,6 +266,7 @@ impl EstimatorCore {
                 })
                 .collect(),
             effects: cfg.joints.iter().map(|j| j.effects).collect(),
+            clock: ClockWatch::new(n, timing.period_ns, CLOCK_WINDOW_NS),
             stats: CoreStats::default(),
         })
     }
@@ -272,6 +279,43 @@ impl EstimatorCore {
     /// Which joints are stale now.
     pub fn stale(&self) -> &[bool] {
         &self.stale
+    }
+
+    /// Each joint's board clock against this host's, the last estimate [ns] (positive: the
+    /// board is ahead; one way, low by the smallest transit: [`crate::clock`]).
+    pub fn clock_offsets_ns(&self) -> &[Option<i64>] {
+        self.clock.offsets_ns()
+    }
+
+    /// The status a clock event makes.
+    fn clock_status(&mut self, e: ClockEvent, now_ns: u64) -> Output {
+        let half_tick_ms = self.timing.period_ns as f64 * 0.5e-6;
+        let (j, text) = match e {
+            ClockEvent::Measured { joint, offset_ns } => (
+                joint,
+                format!(
+                    "clock measured: the board is {:+.3} ms from this host (one way: the smallest arrival delay over {:.0} s, transit included)",
+                    offset_ns as f64 * 1e-6,
+                    CLOCK_WINDOW_NS as f64 * 1e-9
+                ),
+            ),
+            ClockEvent::Beyond { joint, offset_ns } => (
+                joint,
+                format!(
+                    "clock {:+.3} ms from this host, over half a tick ({half_tick_ms:.2} ms): its samples land in other ticks than its peers'; synchronise the board (chrony, PTP)",
+                    offset_ns as f64 * 1e-6
+                ),
+            ),
+            ClockEvent::Within { joint, offset_ns } => (
+                joint,
+                format!(
+                    "clock back within half a tick: {:+.3} ms from this host",
+                    offset_ns as f64 * 1e-6
+                ),
+            ),
+        };
+        let text = format!("joint {}: {text}", self.names[j]);
+        self.status(j, JointState::Ok, text, now_ns)
     }
 
     fn status(&mut self, joint: usize, state: JointState, text: String, now_ns: u64) -> Output {
@@ -360,6 +404,9 @@ impl EstimatorCore {
             return out;
         }
         self.last_accepted[j] = Some((s.seq, s.t_acq_ns));
+        if let Some(e) = self.clock.on_sample(j, s.t_acq_ns, now_ns) {
+            out.push(self.clock_status(e, now_ns));
+        }
         // The identified sensor zeros (`[joint.effects]`), before any model sees the sample.
         let e = self.effects[j];
         let mut s = s;
@@ -812,7 +859,9 @@ mod tests {
             let offset = if tick >= 3000 { 0.05 } else { 0.0 };
             s.torque_nm = Some(sensor.update(defl, 0.009) + offset + noise);
             for o in core.on_sample(s, tick * 1_000_000) {
-                if let Output::Status(st) = o {
+                if let Output::Status(st) = o
+                    && st.text.starts_with("diagnosis:")
+                {
                     diagnoses.push((tick, st.text));
                 }
             }
@@ -872,6 +921,42 @@ mod tests {
             said[0].text
         );
         assert_eq!(said[1].state, JointState::Ok);
+    }
+
+    #[test]
+    fn a_board_under_a_ms_ahead_is_measured_and_said_to_be_past_half_a_tick_while_its_samples_count()
+     {
+        let mut core = EstimatorCore::new(&cfg(), CoreTiming::for_rate(1000.0)).unwrap();
+        let ms = 1_000_000u64;
+        let mut said = Vec::new();
+        for tick in 1..=2500u64 {
+            let now = tick * ms;
+            for j in 0..4u16 {
+                // Transits of 50–250 µs; j2's board 0.8 ms ahead (within the 100 ms bound).
+                let mut s = sample(j, tick, 0.0);
+                s.t_acq_ns -= 50_000 + (tick * 7 + u64::from(j) * 3) % 5 * 50_000;
+                if j == 1 {
+                    s.t_acq_ns += 800_000;
+                }
+                said.extend(statuses(&core.on_sample(s, now)));
+            }
+        }
+        assert_eq!(core.stats.refused_clock, 0);
+        let offsets = core.clock_offsets_ns();
+        assert_eq!(offsets[1], Some(750_000), "{offsets:?}");
+        for j in [0, 2, 3] {
+            assert_eq!(offsets[j], Some(-50_000), "{offsets:?}");
+        }
+        // One status per joint, at the end of its first second; j2's says what to do.
+        assert_eq!(said.len(), 4, "{said:?}");
+        let j2 = said.iter().find(|s| s.joint == 1).unwrap();
+        assert!(
+            j2.text.contains("j2: clock +0.750 ms") && j2.text.contains("over half a tick"),
+            "{}",
+            j2.text
+        );
+        assert!(said.iter().all(|s| s.state == JointState::Ok));
+        assert!(core.stats.ee_estimates > 2000);
     }
 
     #[test]

@@ -42,7 +42,7 @@ pub struct EstimatorOptions {
 }
 
 /// What the host did.
-#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+#[derive(Debug, Clone, Default, PartialEq, Eq)]
 pub struct EstimatorReport {
     pub core: CoreStats,
     pub malformed: u64,
@@ -64,6 +64,9 @@ pub struct EstimatorReport {
     pub window_ns: u64,
     /// Estimates or statuses Zenoh refused to publish.
     pub publish_errors: u64,
+    /// Each joint's board clock against this host's at the end [ns] (positive: ahead; one
+    /// way, low by the smallest transit), in the config's joint order.
+    pub clock_offsets_ns: Vec<Option<i64>>,
 }
 
 /// The host's publishers.
@@ -240,7 +243,8 @@ pub async fn run(
     let report = {
         let mut st = lock(&state);
         st.report.core = st.core.stats;
-        let mut r = st.report;
+        let mut r = st.report.clone();
+        r.clock_offsets_ns = st.core.clock_offsets_ns().to_vec();
         r.age_us = st.ages.summary();
         r.latency_us = st.latencies.summary();
         r.transport_us = st.transport.summary();

@@ -36,6 +36,7 @@ async fn ctrl_c() {
 
 pub fn estimator(a: &HostArgs) -> Result<(), CliError> {
     let (cfg, net, duration) = parts(a)?;
+    let cfg_names: Vec<String> = cfg.joints.iter().map(|j| j.name.clone()).collect();
     let r = runtime()?.block_on(rig_estimator::edge::run(
         rig_estimator::edge::EstimatorOptions { cfg, net, duration },
         ctrl_c(),
@@ -53,6 +54,19 @@ pub fn estimator(a: &HostArgs) -> Result<(), CliError> {
         c.refused_range,
         c.refused_key
     );
+    // Each board's clock against this host's (one way: the smallest transit included).
+    let clocks: Vec<String> = r
+        .clock_offsets_ns
+        .iter()
+        .zip(&cfg_names)
+        .filter_map(|(o, n)| o.map(|o| format!("{n} {:+.3} ms", o as f64 * 1e-6)))
+        .collect();
+    if !clocks.is_empty() {
+        eprintln!(
+            "rig estimator: board clocks against this host: {}",
+            clocks.join(", ")
+        );
+    }
     Ok(())
 }
 

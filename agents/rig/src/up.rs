@@ -214,14 +214,15 @@ async fn up(cfg: RigConfig, args: &Args) -> Result<(), CliError> {
         cfg.rate_hz
     );
     println!(
-        "{:<8} {:>9} {:>9} {:>10} {:>10} {:>20} {:>22}",
+        "{:<8} {:>9} {:>9} {:>10} {:>10} {:>20} {:>22} {:>12}",
         "joint",
         "samples",
         "skipped",
         "commands",
         "rejected",
         "residual RMS [N·m]",
-        "stiffness vs truth"
+        "stiffness vs truth",
+        "clock [ms]"
     );
     for (name, r) in &joint_reports {
         // The live residual (measured − modelled torque) after the warm-up, where the joint
@@ -235,15 +236,20 @@ async fn up(cfg: RigConfig, args: &Args) -> Result<(), CliError> {
         let stiffness = j
             .and_then(|j| w.stiffness_error(j as u16))
             .map_or("—".to_string(), |e| format!("{:+.1} %", 100.0 * e));
+        // The board's clock against the estimator host's (one way: transit included).
+        let clock = j
+            .and_then(|j| est_report.clock_offsets_ns.get(j).copied().flatten())
+            .map_or("—".to_string(), |o| format!("{:+.3}", o as f64 * 1e-6));
         println!(
-            "{:<8} {:>9} {:>9} {:>10} {:>10} {:>20} {:>22}",
+            "{:<8} {:>9} {:>9} {:>10} {:>10} {:>20} {:>22} {:>12}",
             name,
             r.samples,
             r.skipped_ticks,
             r.commands_accepted,
             r.commands_rejected,
             residual,
-            stiffness
+            stiffness,
+            clock
         );
     }
     let c = est_report.core;
