@@ -359,7 +359,7 @@ impl EstimatorCore {
     fn refusal_reason(&self, r: Refusal) -> String {
         match r {
             Refusal::Clock(off) => format!(
-                "stamped {:+.1} ms from this host's clock, bound ±{:.0} ms; check the board's clock (chrony, PTP)",
+                "stamped {:+.1} ms from this host's clock, bound ±{:.0} ms: held up on the way (a link that came back) or a board clock that is off (chrony, PTP)",
                 off as f64 * 1e-6,
                 self.timing.max_clock_offset_ns as f64 * 1e-6
             ),
