@@ -79,15 +79,7 @@ pub fn find_rest(r: &Run, resolution: f64) -> Option<Rest> {
     if b > n {
         return None;
     }
-    let median = |v: &[f64]| {
-        let mut s = v.to_vec();
-        s.sort_by(f64::total_cmp);
-        s[s.len() / 2]
-    };
-    let range = |v: &[f64]| {
-        v.iter().cloned().fold(f64::NEG_INFINITY, f64::max)
-            - v.iter().cloned().fold(f64::INFINITY, f64::min)
-    };
+    let (median, range) = (super::stats::median, super::stats::span);
     let (x_ref, tau_ref) = (median(&phi[a..b]), median(&r.tau[a..b]));
     // Noise from second differences (6σ² for white noise), blind to a slow motion's trend:
     // a run that moves must not widen its own band.

@@ -161,7 +161,7 @@ pub fn uniform_segments(t: &[f64], x: &[f64], dt: f64, max_gap: f64) -> Vec<Vec<
 
 /// The median of the positive steps of `t`.
 pub fn median_step(t: &[f64]) -> f64 {
-    let mut d: Vec<f64> = t
+    let d: Vec<f64> = t
         .windows(2)
         .map(|w| w[1] - w[0])
         .filter(|d| *d > 0.0)
@@ -169,8 +169,7 @@ pub fn median_step(t: &[f64]) -> f64 {
     if d.is_empty() {
         return 0.0;
     }
-    d.sort_by(f64::total_cmp);
-    d[d.len() / 2]
+    super::stats::median(&d)
 }
 
 /// Sudden steps of a signal: sample-to-sample changes over ten times the 90th percentile of

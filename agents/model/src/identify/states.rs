@@ -26,7 +26,7 @@ use super::model::{Fitted, Signals, Transform, fit};
 use super::rows::{Problem, Rest, find_rest, resolution};
 use super::select::Rows;
 use super::signals::stop_operator_from;
-use super::stats::mean;
+use super::stats::{mean, median, span};
 use super::{Declared, IdentifyError, Run};
 
 /// Each run's rest, when the loop-state rule applies: the linear spring, every run at rest.
@@ -46,18 +46,10 @@ pub(crate) fn zeroed_at_start(r: &Run) -> bool {
     let Some(phi) = r.phi.as_deref().filter(|p| !p.is_empty()) else {
         return false;
     };
-    let (lo, hi) = phi
-        .iter()
-        .fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), &v| {
-            (lo.min(v), hi.max(v))
-        });
+    let range = span(phi);
     let step = resolution(phi);
-    let within = if step > 0.0 {
-        3.0 * step
-    } else {
-        1e-3 * (hi - lo)
-    };
-    hi > lo && phi[0].abs() <= within
+    let within = if step > 0.0 { 3.0 * step } else { 1e-3 * range };
+    range > 0.0 && phi[0].abs() <= within
 }
 
 /// Where a run ends unloaded [rad]: the medians of its last 0.25 s of deflection and torque,
@@ -70,11 +62,6 @@ pub(crate) fn end_unloaded(r: &Run, k: f64) -> Option<f64> {
     let a =
         r.t.partition_point(|t| *t < t_end - 0.25)
             .min(r.t.len() - 1);
-    let median = |v: &[f64]| {
-        let mut s = v.to_vec();
-        s.sort_by(f64::total_cmp);
-        s[s.len() / 2]
-    };
     let (x, tau) = (median(&phi[a..]), median(&r.tau[a..]));
     let peak = r.tau.iter().fold(0.0f64, |m, v| m.max(v.abs()));
     if tau.abs() > 0.1 * peak {

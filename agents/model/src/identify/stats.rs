@@ -26,6 +26,22 @@ pub fn mean(e: &[f64]) -> f64 {
     e.iter().sum::<f64>() / e.len() as f64
 }
 
+/// Median of `v` (the upper one of an even count; NaN when empty).
+pub fn median(v: &[f64]) -> f64 {
+    if v.is_empty() {
+        return f64::NAN;
+    }
+    let mut s = v.to_vec();
+    s.sort_by(f64::total_cmp);
+    s[s.len() / 2]
+}
+
+/// Largest less smallest value of `v` (−∞ when empty).
+pub fn span(v: &[f64]) -> f64 {
+    v.iter().copied().fold(f64::NEG_INFINITY, f64::max)
+        - v.iter().copied().fold(f64::INFINITY, f64::min)
+}
+
 /// Standard deviation of `e` about its mean (population).
 pub fn std(e: &[f64]) -> f64 {
     let m = mean(e);
