@@ -373,16 +373,16 @@ pub fn identify(
     };
     // Or the rests are states of the loop: the runs as measured (a held-out run zeroed at its
     // start read in the fit run's frame), each run's state and torque zero set by its rest.
-    let loop_rests = if opts.loop_states && !tare.is_empty() {
-        states::rests(opts.model, &raw.runs)
+    let loop_rests = if opts.loop_states {
+        states::rests(opts.model, &tare)
     } else {
         None
     };
     // One frame for every run, its zero at the first fit run's rest (where a gap or a stop is
     // centred): each run's deflection is shifted by `frame[k]`.
     let frame: Vec<f64> = match &loop_rests {
-        Some(rests) => {
-            let x0 = rests[0].deflection;
+        Some(_) => {
+            let x0 = tare[0].deflection_zero;
             let held_shift = states::continuity(fit_runs, held, before.part(0)[0]);
             fit_runs
                 .iter()
@@ -402,7 +402,8 @@ pub fn identify(
         let (fit_s, held_s) = (shift(fit_runs, 0), shift(held, fit_runs.len()));
         let mut p = Problem::new(&fit_s, &held_s, &holdout, opts);
         p.set_rate_window(window);
-        p.loop_rests = states::rests(opts.model, &p.runs);
+        // A shift of the deflection leaves each rest's samples where they were.
+        p.loop_rests = loop_rests;
         let base = states::settle(&mut p, &[], &rows)?;
         (p, base)
     } else if tare.is_empty() {

@@ -206,8 +206,9 @@ pub(crate) struct Problem {
     pub widths: Vec<f64>,
     /// How many runs are fit runs (the rest are held out).
     pub fit_runs: usize,
-    /// Each run's rest, when the rests are read as states of the loop ([`super::states`]).
-    pub loop_rests: Option<Vec<Rest>>,
+    /// Each run's rest (its samples, within the run), when the rests are read as states of
+    /// the loop ([`super::states`]).
+    pub loop_rests: Option<Vec<(usize, usize)>>,
     /// Each run's hysteresis start state (set by [`super::states::settle`]).
     pub states: Option<Vec<f64>>,
     /// Each run's torque zero under the loop-state rule: what the loop cannot hold at rest.

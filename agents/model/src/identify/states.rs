@@ -23,20 +23,16 @@
 
 use super::effects::{Effect, Shaped};
 use super::model::{Fitted, Signals, Transform, fit};
-use super::rows::{Problem, Rest, find_rest, resolution};
+use super::rows::{Problem, Tare, resolution};
 use super::select::Rows;
 use super::signals::stop_operator_from;
 use super::stats::{mean, median, span};
 use super::{Declared, IdentifyError, Run};
 
-/// Each run's rest, when the loop-state rule applies: the linear spring, every run at rest.
-pub(crate) fn rests(model: Declared, runs: &[Run]) -> Option<Vec<Rest>> {
-    if model != Declared::Linear {
-        return None;
-    }
-    runs.iter()
-        .map(|r| find_rest(r, resolution(r.phi.as_deref().unwrap_or(&[]))))
-        .collect()
+/// Each run's rest (its samples), when the loop-state rule applies: the linear spring, every
+/// run tared at rest (the tare is every run's or none).
+pub(crate) fn rests(model: Declared, tare: &[Tare]) -> Option<Vec<(usize, usize)>> {
+    (model == Declared::Linear && !tare.is_empty()).then(|| tare.iter().map(|t| t.rest).collect())
 }
 
 /// Whether the run's encoder was zeroed at its start: its first reading within three
@@ -125,7 +121,7 @@ pub(crate) fn settle(
     if let Some(h) = hyst {
         for _ in 0..3 {
             for (k, rest) in rests.iter().enumerate().take(p.fit_runs) {
-                states[k] = at_rest(p, &s, &f, Some(h), k, rest).0;
+                states[k] = at_rest(p, &s, &f, Some(h), k, *rest).0;
             }
             p.states = Some(states.clone());
             (s, f) = fit_once(p)?;
@@ -134,12 +130,12 @@ pub(crate) fn settle(
     // What the model misses at the fit runs' rests (nothing, where the loop holds them) is
     // the protocol's, not a zero: each held-out run's torque zero is its own less that.
     let missed = (0..p.fit_runs)
-        .map(|k| at_rest(p, &s, &f, hyst, k, &rests[k]).1)
+        .map(|k| at_rest(p, &s, &f, hyst, k, rests[k]).1)
         .sum::<f64>()
         / p.fit_runs.max(1) as f64;
     let mut shifts = vec![0.0; n];
     for k in p.fit_runs..n {
-        (states[k], shifts[k]) = at_rest(p, &s, &f, hyst, k, &rests[k]);
+        (states[k], shifts[k]) = at_rest(p, &s, &f, hyst, k, rests[k]);
         shifts[k] -= missed;
     }
     if hyst.is_some() {
@@ -165,24 +161,24 @@ fn at_rest(
     f: &Fitted,
     hyst: Option<usize>,
     k: usize,
-    rest: &Rest,
+    (start, end): (usize, usize),
 ) -> (f64, f64) {
     let a = p.bounds[k].0;
-    let rows = a + rest.start..a + rest.end;
+    let rows = a + start..a + end;
     let tau = mean(&p.tau[rows.clone()]);
     let predicted = mean(&f.prediction[rows]);
     let Some(h) = hyst else {
         return (0.0, tau - predicted);
     };
     let weights = f.part(h + 1);
-    let xs = &s.xs[a..a + rest.end];
+    let xs = &s.xs[a..a + end];
     // The stops' mean contribution over the rest from state λ (non-decreasing in λ: each
     // stop's output is, and its weight is ≥ 0).
     let loop_at = |lam: f64| -> f64 {
         s.widths
             .iter()
             .zip(weights)
-            .map(|(&r, &w)| w * mean(&stop_operator_from(xs, r, lam * r)[rest.start..]))
+            .map(|(&r, &w)| w * mean(&stop_operator_from(xs, r, lam * r)[start..]))
             .sum()
     };
     let now = p.states.as_ref().map_or(0.0, |v| v[k]);
