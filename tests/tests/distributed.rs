@@ -906,7 +906,7 @@ fn summary_residual_rms(summary: &str, joint: &str) -> f64 {
 }
 
 #[test]
-fn malformed_floods_are_counted_in_full_but_said_in_few_lines_and_a_command_off_the_clock_is_refused()
+fn malformed_floods_are_counted_in_full_but_said_in_few_lines_and_a_command_or_goal_off_the_clock_is_refused()
  {
     // A peer sends 1 000 malformed commands to a joint and 1 000 malformed goals to the
     // allocator: each is dropped and counted; the log says the 1st, 10th, 100th and 1000th,
@@ -1004,11 +1004,29 @@ fn malformed_floods_are_counted_in_full_but_said_in_few_lines_and_a_command_off_
             .congestion_control(rig_runtime::zenoh::qos::CongestionControl::Block)
             .await
             .unwrap();
-        // Each receiver handles its messages in order: once the refusal and the answer are
+        // A valid goal the rig could meet, stamped 2 s ago (held up on the way, or replayed):
+        // refused for its age, and said in the answer.
+        let old = {
+            let now = z.new_timestamp();
+            let then = now.get_time().to_duration() - Duration::from_secs(2);
+            rig_runtime::zenoh::time::Timestamp::new(then.into(), *now.get_id())
+        };
+        let late = AllocationRequest {
+            id: 78,
+            x_m: 0.075,
+            y_m: 0.2,
+            target: AllocationTarget::Percent(50.0),
+        };
+        z.put("rig/parallel/stiffness/goal", encode(&late).unwrap())
+            .timestamp(old)
+            .congestion_control(rig_runtime::zenoh::qos::CongestionControl::Block)
+            .await
+            .unwrap();
+        // Each receiver handles its messages in order: once the refusals and the answer are
         // out, every malformed message before them has been counted.
-        let (mut refused, mut answered) = (false, false);
+        let (mut refused, mut answered, mut too_old) = (false, false, false);
         let until = Instant::now() + Duration::from_secs(20);
-        while !(refused && answered) && Instant::now() < until {
+        while !(refused && answered && too_old) && Instant::now() < until {
             tokio::select! {
                 Ok(s) = status.recv_async() => {
                     if let Ok(st) = decode::<JointStatus>(&s.payload().to_bytes()) {
@@ -1018,14 +1036,18 @@ fn malformed_floods_are_counted_in_full_but_said_in_few_lines_and_a_command_off_
                 Ok(r) = results.recv_async() => {
                     if let Ok(r) = decode::<AllocationResult>(&r.payload().to_bytes()) {
                         answered |= r.id == 77 && !r.feasible;
+                        too_old |= r.id == 78
+                            && !r.feasible
+                            && r.error.contains("stamped 2.0")
+                            && r.error.contains("ago");
                     }
                 }
                 _ = tokio::time::sleep(Duration::from_millis(100)) => {}
             }
         }
         assert!(
-            refused && answered,
-            "refused {refused}, answered {answered}"
+            refused && answered && too_old,
+            "refused {refused}, answered {answered}, the late goal refused {too_old}"
         );
     });
     // Both stop at once (as a lab's Ctrl-C would), then each must end cleanly.
@@ -1050,6 +1072,10 @@ fn malformed_floods_are_counted_in_full_but_said_in_few_lines_and_a_command_off_
             "{text}"
         );
     }
+    assert_eq!(
+        common::report_count(&alloc_log, "rig allocator:", "goals refused for their age"),
+        1
+    );
     let text = std::fs::read_to_string(&joint_log).unwrap();
     assert!(
         text.contains("0 commands accepted, 1 rejected"),

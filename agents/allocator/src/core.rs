@@ -16,6 +16,56 @@ use rig_protocol::{
 
 use crate::plan::{PlanError, Target, allocate};
 
+/// How a continuous goal's stamp (the time its publisher's Zenoh session gave it) stands against
+/// this host's clock. A goal held up on the way, replayed from a recording or sent by a machine
+/// whose clock is off must not move the pivots: the bound is the config's `[clock] max_offset_ms`,
+/// the same one the estimator holds samples to.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum GoalAge {
+    /// Within the bound: obeyed.
+    Fresh,
+    /// The publisher does not stamp (a Zenoh session with timestamping off): obeyed, and said
+    /// once, since nothing can be checked.
+    Unstamped,
+    /// Older than the bound by this much [ns]: refused.
+    Stale { age_ns: u64 },
+    /// Ahead of this host's clock by more than the bound [ns]: refused.
+    Ahead { ahead_ns: u64 },
+}
+
+/// The verdict on a goal stamped `stamp_ns` (Unix time [ns], `None`: unstamped) arriving at
+/// `now_ns`, with the bound `bound_ns`. Pure: the edge reads the clock and the stamp.
+pub fn goal_age(stamp_ns: Option<u64>, now_ns: u64, bound_ns: u64) -> GoalAge {
+    match stamp_ns {
+        None => GoalAge::Unstamped,
+        Some(t) if now_ns > t && now_ns - t > bound_ns => GoalAge::Stale { age_ns: now_ns - t },
+        Some(t) if t > now_ns && t - now_ns > bound_ns => GoalAge::Ahead {
+            ahead_ns: t - now_ns,
+        },
+        Some(_) => GoalAge::Fresh,
+    }
+}
+
+/// The answer to a request or goal that is not applied: nothing allocated, `why` said (at most
+/// 1000 characters).
+pub fn refusal(id: u64, why: &str) -> AllocationResult {
+    let zero = StiffnessTriple {
+        xx: 0.0,
+        xy: 0.0,
+        yy: 0.0,
+    };
+    AllocationResult {
+        id,
+        feasible: false,
+        residual: 0.0,
+        target: zero,
+        achieved: zero,
+        k_joint_nm_per_rad: vec![],
+        pivot_m: vec![],
+        error: why.chars().take(1000).collect(),
+    }
+}
+
 /// The allocator host's core.
 #[derive(Debug, Clone)]
 pub struct AllocatorCore {
@@ -105,11 +155,6 @@ impl AllocatorCore {
         target: Target,
         now_ns: u64,
     ) -> (AllocationResult, Vec<JointCommand>) {
-        let zero = StiffnessTriple {
-            xx: 0.0,
-            xy: 0.0,
-            yy: 0.0,
-        };
         match allocate(&self.cfg, at_m, target) {
             Ok(plan) => {
                 let failure = plan.failure(self.cfg.topology);
@@ -132,19 +177,9 @@ impl AllocatorCore {
                 }
                 (result, Vec::new())
             }
-            Err(PlanError::Unsupported(e) | PlanError::Infeasible(e)) => (
-                AllocationResult {
-                    id,
-                    feasible: false,
-                    residual: 0.0,
-                    target: zero,
-                    achieved: zero,
-                    k_joint_nm_per_rad: vec![],
-                    pivot_m: vec![],
-                    error: e.chars().take(1000).collect(),
-                },
-                Vec::new(),
-            ),
+            Err(PlanError::Unsupported(e) | PlanError::Infeasible(e)) => {
+                (refusal(id, &e), Vec::new())
+            }
         }
     }
 
@@ -192,6 +227,36 @@ impl AllocatorCore {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn a_goal_is_obeyed_within_the_clock_bound_and_refused_beyond_it_either_way() {
+        let (now, bound) = (1_700_000_000_000_000_000_u64, 100_000_000);
+        assert_eq!(goal_age(Some(now), now, bound), GoalAge::Fresh);
+        assert_eq!(goal_age(Some(now - bound), now, bound), GoalAge::Fresh);
+        assert_eq!(goal_age(Some(now + bound), now, bound), GoalAge::Fresh);
+        assert_eq!(
+            goal_age(Some(now - 2_000_000_000), now, bound),
+            GoalAge::Stale {
+                age_ns: 2_000_000_000
+            }
+        );
+        assert_eq!(
+            goal_age(Some(now + bound + 1), now, bound),
+            GoalAge::Ahead {
+                ahead_ns: bound + 1
+            }
+        );
+        assert_eq!(goal_age(None, now, bound), GoalAge::Unstamped);
+        // Absurd stamps are verdicts, not overflows.
+        assert_eq!(
+            goal_age(Some(u64::MAX), 0, bound),
+            GoalAge::Ahead { ahead_ns: u64::MAX }
+        );
+        assert_eq!(
+            goal_age(Some(0), u64::MAX, bound),
+            GoalAge::Stale { age_ns: u64::MAX }
+        );
+    }
 
     fn core() -> AllocatorCore {
         AllocatorCore::new(rig_config::examples::load("parallel").unwrap())

@@ -8,7 +8,7 @@ use rig_config::RigConfig;
 use rig_protocol::{AllocationRequest, EeEstimate, JointCommand, Keys, decode, encode};
 use rig_runtime::{NetOverrides, now_ns, open, zenoh_err as z};
 
-use crate::core::AllocatorCore;
+use crate::core::{AllocatorCore, GoalAge, goal_age, refusal};
 
 /// The allocator host fails only at its Zenoh edge.
 pub type AllocatorError = rig_runtime::RuntimeError;
@@ -29,6 +29,11 @@ pub struct AllocatorReport {
     /// host: its agent was down, or not linked to this machine (they went nowhere).
     pub unmatched: u64,
     pub malformed: u64,
+    /// Goals refused because their stamp was further from this host's clock than the
+    /// config's clock bound (held up on the way, replayed, or a publisher whose clock is off).
+    pub stale_goals: u64,
+    /// Goals from a publisher that does not stamp (obeyed: nothing to check).
+    pub unstamped_goals: u64,
 }
 
 /// Runs the host until `shutdown` resolves or the duration ends.
@@ -68,6 +73,9 @@ pub async fn run(
         .await
         .map_err(z)?;
     let mut report = AllocatorReport::default();
+    let clock_bound_ns = (cfg.clock.max_offset_s * 1e9).round() as u64;
+    // Goals refused for their age: said at the 1st, 10th, 100th…
+    let mut stale = rig_runtime::LogBudget::default();
     // Infeasible goals are answered in the result; the log says the 1st, 10th, 100th…
     let mut infeasible = rig_runtime::LogBudget::default();
     // Per joint: commands sent to nobody, said at the 1st, 10th, 100th…
@@ -107,9 +115,48 @@ pub async fn run(
             }
             g = goals.recv_async() => {
                 let Ok(g) = g else { break };
+                let stamp_ns = g.timestamp().map(|t| t.get_time().as_nanos());
                 match decode::<AllocationRequest>(&g.payload().to_bytes()) {
                     Ok(req) => {
                         report.goals += 1;
+                        let late = match goal_age(stamp_ns, now_ns(), clock_bound_ns) {
+                            GoalAge::Fresh => None,
+                            GoalAge::Unstamped => {
+                                report.unstamped_goals += 1;
+                                if report.unstamped_goals == 1 {
+                                    eprintln!(
+                                        "rig allocator: goal {} carries no Zenoh timestamp (its publisher runs with timestamping off), so its age cannot be checked; obeyed",
+                                        req.id
+                                    );
+                                }
+                                None
+                            }
+                            GoalAge::Stale { age_ns } => Some(format!(
+                                "goal stamped {:.3} s ago",
+                                age_ns as f64 * 1e-9
+                            )),
+                            GoalAge::Ahead { ahead_ns } => Some(format!(
+                                "goal stamped {:.3} s ahead of this host's clock",
+                                ahead_ns as f64 * 1e-9
+                            )),
+                        };
+                        if let Some(late) = late {
+                            report.stale_goals += 1;
+                            let why = format!(
+                                "{late}, beyond the clock bound of {:.3} s ([clock] max_offset_ms): refused (held up on the way, replayed, or a publisher whose clock is off)",
+                                cfg.clock.max_offset_s
+                            );
+                            if let Some(n) = stale.count() {
+                                eprintln!(
+                                    "rig allocator: goal {} not applied: {why} ({n} refused so far)",
+                                    req.id
+                                );
+                            }
+                            if let Ok(bytes) = encode(&refusal(req.id, &why)) {
+                                result_pub.put(bytes).await.map_err(z)?;
+                            }
+                            continue;
+                        }
                         let (result, cmds) = core.on_goal(&req, now_ns());
                         if !result.feasible
                             && let Some(n) = infeasible.count()

@@ -77,8 +77,8 @@ pub fn allocator(a: &HostArgs) -> Result<(), CliError> {
         ctrl_c(),
     ))?;
     eprintln!(
-        "rig allocator: {} requests, {} goals, {} commands ({} to no subscriber), {} malformed",
-        r.requests, r.goals, r.commands, r.unmatched, r.malformed
+        "rig allocator: {} requests, {} goals, {} commands ({} to no subscriber), {} malformed, {} goals refused for their age, {} unstamped",
+        r.requests, r.goals, r.commands, r.unmatched, r.malformed, r.stale_goals, r.unstamped_goals
     );
     Ok(())
 }

@@ -268,8 +268,12 @@ async fn up(cfg: RigConfig, args: &Args) -> Result<(), CliError> {
         est_report.age_us.p50, est_report.age_us.p99, est_report.age_us.max
     );
     println!(
-        "allocator: {} goals, {} requests, {} pivot commands sent ({} to no subscriber)",
-        alloc_report.goals, alloc_report.requests, alloc_report.commands, alloc_report.unmatched
+        "allocator: {} goals ({} refused for their age), {} requests, {} pivot commands sent ({} to no subscriber)",
+        alloc_report.goals,
+        alloc_report.stale_goals,
+        alloc_report.requests,
+        alloc_report.commands,
+        alloc_report.unmatched
     );
     if let Some(line) = w.force_error() {
         println!("{line}");
