@@ -170,7 +170,7 @@ fn on_a_linear_spring_each_effect_is_named_alone_and_clean_data_gets_nothing() {
 
 #[test]
 fn on_the_lever_with_bouc_wen_friction_each_effect_is_named_alone_and_clean_data_gets_nothing() {
-    plant_meets_its_targets(Plant::Lever, 0.8, 0.75);
+    plant_meets_its_targets(Plant::Lever, 0.9, 0.9);
 }
 
 #[test]
@@ -214,6 +214,7 @@ fn table_over_many_seeds() {
         .ok()
         .and_then(|s| s.parse().ok())
         .unwrap_or(12);
+    // VERBOSE=1 lists every case's names on stderr.
     println!(
         "| plant (declared model) | effect | named alone | alone and paid off | held-out RMSE after/before (median) | after / clean twin's (median) | what else was named |"
     );
@@ -228,7 +229,24 @@ fn table_over_many_seeds() {
         let mut rows: Vec<Option<Inject>> = vec![None];
         rows.extend(Inject::on(plant).iter().copied().map(Some));
         for inject in rows {
+            // EFFECT=<label prefix> keeps one row (with its clean twins).
+            if std::env::var("EFFECT")
+                .is_ok_and(|e| !inject.map_or("none (clean)", Inject::label).starts_with(&e))
+            {
+                continue;
+            }
             let outs: Vec<Outcome> = cases(plant, inject, 0..seeds).iter().map(outcome).collect();
+            if std::env::var_os("VERBOSE").is_some() {
+                for (seed, o) in outs.iter().enumerate() {
+                    eprintln!(
+                        "  {} seed {seed}: {:?} after/before {:.2} after/floor {:.2}",
+                        inject.map_or("none (clean)", Inject::label),
+                        o.names,
+                        o.ratio(),
+                        o.after / o.floor
+                    );
+                }
+            }
             let want: Vec<String> = inject
                 .map(|i| vec![i.expected().to_string()])
                 .unwrap_or_default();

@@ -276,9 +276,16 @@ impl Shaped {
             },
             Effect::PeriodicRipple => {
                 let w = std::f64::consts::TAU / r;
+                // Tared runs read zero at rest (zero deflection), where the ripple's cosine
+                // part is 1: the tare took that share as the torque zero, so the column does
+                // too (else an offset must come back to add it again).
+                let at_rest = if s.zero_at_rest { 1.0 } else { 0.0 };
                 vec![
                     (s.angle.iter().map(|a| (w * a).sin()).collect(), Bound::Free),
-                    (s.angle.iter().map(|a| (w * a).cos()).collect(), Bound::Free),
+                    (
+                        s.angle.iter().map(|a| (w * a).cos() - at_rest).collect(),
+                        Bound::Free,
+                    ),
                 ]
             }
         }

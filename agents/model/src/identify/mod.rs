@@ -412,6 +412,7 @@ pub fn identify(
         let (fit_t, held_t) = (tared(fit_runs, 0), tared(held, fit_runs.len()));
         let mut p = Problem::new(&fit_t, &held_t, &holdout, opts);
         p.set_rate_window(window);
+        p.tared = true;
         let base = declared(&mut p)?;
         (p, base)
     };
@@ -466,15 +467,24 @@ pub fn identify(
     // offset, calibrated by the tare: named where the declared model has no constant to hold
     // it (the restoring model), with the tare's held-out gain.
     let mut effects: Vec<Found> = Vec::new();
+    // What a chosen ripple puts at rest (its cosine part: the tare took it as the zero) is
+    // not the sensor's.
     if opts.model == Declared::Restoring && !tare.is_empty() {
-        let zero = tare.iter().map(|t| t.torque_zero).sum::<f64>() / tare.len() as f64;
+        let ripple_at_rest: f64 = chosen
+            .iter()
+            .enumerate()
+            .filter(|(_, c)| c.effect == Effect::PeriodicRipple && sig.zero_at_rest)
+            .map(|(k, _)| after.part(k + 1).get(1).copied().unwrap_or(0.0))
+            .sum();
+        let sensor = |t: &Tare| t.torque_zero - ripple_at_rest;
+        let zero = tare.iter().map(sensor).sum::<f64>() / tare.len() as f64;
         let peak = raw.tau.iter().fold(0.0f64, |m, v| m.max(v.abs()));
         if tare
             .iter()
-            .all(|t| (t.torque_zero - zero).abs() < 0.25 * zero.abs())
+            .all(|t| (sensor(t) - zero).abs() < 0.25 * zero.abs())
             && tare
                 .iter()
-                .all(|t| t.torque_zero.abs() > (3.0 * t.torque_noise).max(0.005 * peak))
+                .all(|t| sensor(t).abs() > (3.0 * t.torque_noise).max(0.005 * peak))
         {
             effects.push(Found {
                 effect: Effect::Offset,

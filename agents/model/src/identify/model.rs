@@ -80,6 +80,9 @@ pub struct Signals {
     pub duration: f64,
     pub lever: Option<LeverVsa>,
     pub base_has_intercept: bool,
+    /// The model must read zero torque at zero deflection: every run was tared at its rest and
+    /// the declared model has no intercept to take an effect's value there.
+    pub zero_at_rest: bool,
     /// Half-widths of hysteresis's stop operators [rad].
     pub widths: Vec<f64>,
     /// dτ̂/dx of the declared model along the path (the restoring model; a linear spring's
@@ -130,6 +133,7 @@ impl Problem {
             duration: 0.0,
             lever: self.lever,
             base_has_intercept: self.model == Declared::Linear,
+            zero_at_rest: self.tared && self.model != Declared::Linear,
             widths: self.widths.clone(),
             slope: None,
             base: vec![],

@@ -211,6 +211,8 @@ pub(crate) struct Problem {
     pub loop_rests: Option<Vec<(usize, usize)>>,
     /// Each run's hysteresis start state (set by [`super::states::settle`]).
     pub states: Option<Vec<f64>>,
+    /// Every run tared at its rest: each run's deflection and torque read zero there.
+    pub tared: bool,
     /// Each run's torque zero under the loop-state rule: what the loop cannot hold at rest.
     pub shifts: Vec<f64>,
 }
@@ -272,6 +274,7 @@ impl Problem {
             widths: vec![],
             fit_runs: fit.len(),
             loop_rests: None,
+            tared: false,
             states: None,
             shifts: vec![],
         };

@@ -272,47 +272,53 @@ pub(crate) fn forward(
                 && cand.effect == Effect::Offset
                 && cand.on == Place::Deflection
             {
-                // An encoder offset: δ from the column linearised through the loop's slope,
-                // then the loop replayed on the corrected input and refitted, δ corrected
-                // again, until it settles.
-                let mut q = p.clone();
-                let mut delta = 0.0;
-                for _ in 0..5 {
-                    let mut trial = chosen.clone();
-                    trial.push(Shaped {
-                        size: delta,
-                        ..cand
-                    });
-                    trial.push(cand);
-                    let s = q.signals(Transform {
-                        slope: true,
-                        ..Transform::of(&trial)
-                    });
-                    let f = fit(&s, &trial, &q.tau, &rows.fit).ok_or(IdentifyError::Solve)?;
-                    let scale = f.part(0).first().copied().unwrap_or(1.0);
-                    let step = f.part(trial.len()).first().copied().unwrap_or(0.0) / scale;
-                    if !step.is_finite() {
-                        break;
-                    }
-                    delta += step;
-                    trial.pop();
-                    trial.pop();
-                    trial.push(Shaped {
-                        size: delta,
-                        ..cand
-                    });
-                    q.restoring = Some(refit_restoring(&q, &trial, &rows.fit)?);
-                    if step.abs() <= 0.01 * delta.abs() {
-                        break;
+                // An encoder slip: the loop fitted without it has bent to hold part of it
+                // (a softer, wider loop), so the jump time found against that loop is not to
+                // be trusted. Jump times every 1/12 of the run, the times the residual points
+                // at and a constant offset are each settled for one round, the best one to the
+                // end, and its time then found again from what the settled loop leaves.
+                let mut best: Option<(Shaped, f64)> = None;
+                let slips: Vec<&Shaped> =
+                    grid.iter().filter(|c| c.on == Place::Deflection).collect();
+                let evenly = slips.iter().take_while(|c| c.shape.is_finite()).count();
+                for (_, c) in slips
+                    .into_iter()
+                    .enumerate()
+                    .filter(|(i, _)| *i >= evenly || i % 2 == 1)
+                {
+                    let Ok((_, c, v)) = settle_slip(p, &chosen, c, rows, 1) else {
+                        continue;
+                    };
+                    if best.is_none_or(|b| v < b.1) {
+                        best = Some((c, v));
                     }
                 }
-                cand = Shaped {
-                    size: delta,
-                    ..cand
+                let settled = best.and_then(|(c, _)| {
+                    let searched = Shaped {
+                        size: f64::NAN,
+                        ..c
+                    };
+                    settle_slip(p, &chosen, &searched, rows, 5).ok()
+                });
+                let Some((mut q, mut c, mut v)) = settled else {
+                    per_effect.push((*e, f64::NEG_INFINITY, f64::NEG_INFINITY));
+                    continue;
                 };
-                let mut trial = chosen.clone();
-                trial.push(cand);
-                let v = validation_error(&q, &trial, rows)?;
+                // The jump time again, from what the settled loop leaves (the times tried
+                // were 1/12 of the run apart).
+                let s = q.signals(sig_transform(&q, &chosen));
+                let e = fit(&s, &chosen, &q.tau, &rows.fit)
+                    .ok_or(IdentifyError::Solve)?
+                    .residual_on(&q.tau, &rows.fit);
+                if let Some(t) = split_times(&s, &rows.fit, &e, Place::Deflection)
+                    .first()
+                    .filter(|t| !t.same_shape(&c))
+                    && let Ok((q2, c2, v2)) = settle_slip(p, &chosen, t, rows, 5)
+                    && v2 < v
+                {
+                    (q, c, v) = (q2, c2, v2);
+                }
+                cand = c;
                 refitted = q;
                 (&refitted, v)
             } else if p.model == Declared::Restoring && cand.is_input() {
@@ -320,10 +326,39 @@ pub(crate) fn forward(
                 // inputs, the shape searched again against it, until the two settle.
                 let mut q = p.clone();
                 let mut v = val;
+                // The loop fitted without the effect has bent to hold what it could of it (a
+                // lag of the torque path runs a loop backwards, which the loop's own height
+                // cancels): the shape found against that loop is not to be trusted. Every
+                // shape of a thinned grid (both signs of a lag kept) first gets a loop of its
+                // own; the search below refines between the grid's points.
+                let every = grid.len().div_ceil(14).max(1);
+                for c in grid
+                    .iter()
+                    .enumerate()
+                    .filter(|(i, _)| (i / 2) % every == 0)
+                    .map(|(_, c)| c)
+                {
+                    let mut trial = chosen.clone();
+                    trial.push(*c);
+                    progress();
+                    // A shape the loop cannot be fitted to (no spring left) is no candidate.
+                    let Ok(curve) = refit_restoring(p, &trial, &rows.fit) else {
+                        continue;
+                    };
+                    let mut own = p.clone();
+                    own.restoring = Some(curve);
+                    let e = validation_error(&own, &trial, rows)?;
+                    if e < v {
+                        (cand, v, q) = (*c, e, own);
+                    }
+                }
                 for _ in 0..4 {
                     let mut trial = chosen.clone();
                     trial.push(cand);
-                    q.restoring = Some(refit_restoring(&q, &trial, &rows.fit)?);
+                    let Ok(curve) = refit_restoring(&q, &trial, &rows.fit) else {
+                        break;
+                    };
+                    q.restoring = Some(curve);
                     let Some((c, e, _)) = search(
                         &q,
                         &sig,
@@ -499,6 +534,57 @@ fn friction_seeded_loop(
     let share = combine(&refs[first_own..], &coefs[first_own..], p.tau.len());
     let target: Vec<f64> = p.tau.iter().zip(&share).map(|(t, s)| t - s).collect();
     fit_restoring_on(p, rows, &target, Transform::of(chosen))
+}
+
+/// An encoder slip `cand` (its jump time) on the restoring model: δ from the column
+/// linearised through the loop's slope, then the loop replayed on the corrected input and
+/// refitted, δ corrected again, for at most `rounds` or until it settles. Returns the problem
+/// with the refitted loop, the slip with its δ and the validation RMSE.
+fn settle_slip(
+    p: &Problem,
+    chosen: &[Shaped],
+    cand: &Shaped,
+    rows: &Rows,
+    rounds: usize,
+) -> Result<(Problem, Shaped, f64), IdentifyError> {
+    let mut q = p.clone();
+    let mut delta = 0.0;
+    for _ in 0..rounds {
+        let mut trial = chosen.to_vec();
+        trial.push(Shaped {
+            size: delta,
+            ..*cand
+        });
+        trial.push(*cand);
+        let s = q.signals(Transform {
+            slope: true,
+            ..Transform::of(&trial)
+        });
+        let f = fit(&s, &trial, &q.tau, &rows.fit).ok_or(IdentifyError::Solve)?;
+        let scale = f.part(0).first().copied().unwrap_or(1.0);
+        let step = f.part(trial.len()).first().copied().unwrap_or(0.0) / scale;
+        if !step.is_finite() {
+            break;
+        }
+        delta += step;
+        trial.truncate(chosen.len());
+        trial.push(Shaped {
+            size: delta,
+            ..*cand
+        });
+        q.restoring = Some(refit_restoring(&q, &trial, &rows.fit)?);
+        if step.abs() <= 0.01 * delta.abs() {
+            break;
+        }
+    }
+    let slip = Shaped {
+        size: delta,
+        ..*cand
+    };
+    let mut trial = chosen.to_vec();
+    trial.push(slip);
+    let v = validation_error(&q, &trial, rows)?;
+    Ok((q, slip, v))
 }
 
 /// The validation RMSE of `trial` fitted on the train blocks.
