@@ -993,17 +993,23 @@ fn malformed_floods_are_counted_in_full_but_said_in_few_lines_and_a_command_or_g
         z.put("rig/parallel/joint/j1/command", encode(&ahead).unwrap())
             .await
             .unwrap();
-        // A valid goal at a pose out of reach: answered (infeasible), nothing commanded.
-        let goal = AllocationRequest {
-            id: 77,
-            x_m: 5.0,
-            y_m: 5.0,
-            target: AllocationTarget::Percent(50.0),
+        let half_the_range_at = |id: u64, x_m: f64, y_m: f64| {
+            let goal = AllocationRequest {
+                id,
+                x_m,
+                y_m,
+                target: AllocationTarget::Percent(50.0),
+            };
+            encode(&goal).unwrap()
         };
-        z.put("rig/parallel/stiffness/goal", encode(&goal).unwrap())
-            .congestion_control(rig_runtime::zenoh::qos::CongestionControl::Block)
-            .await
-            .unwrap();
+        // A valid goal at a pose out of reach: answered (infeasible), nothing commanded.
+        z.put(
+            "rig/parallel/stiffness/goal",
+            half_the_range_at(77, 5.0, 5.0),
+        )
+        .congestion_control(rig_runtime::zenoh::qos::CongestionControl::Block)
+        .await
+        .unwrap();
         // A valid goal the rig could meet, stamped 2 s ago (held up on the way, or replayed):
         // refused for its age, and said in the answer.
         let old = {
@@ -1011,17 +1017,14 @@ fn malformed_floods_are_counted_in_full_but_said_in_few_lines_and_a_command_or_g
             let then = now.get_time().to_duration() - Duration::from_secs(2);
             rig_runtime::zenoh::time::Timestamp::new(then.into(), *now.get_id())
         };
-        let late = AllocationRequest {
-            id: 78,
-            x_m: 0.075,
-            y_m: 0.2,
-            target: AllocationTarget::Percent(50.0),
-        };
-        z.put("rig/parallel/stiffness/goal", encode(&late).unwrap())
-            .timestamp(old)
-            .congestion_control(rig_runtime::zenoh::qos::CongestionControl::Block)
-            .await
-            .unwrap();
+        z.put(
+            "rig/parallel/stiffness/goal",
+            half_the_range_at(78, 0.075, 0.2),
+        )
+        .timestamp(old)
+        .congestion_control(rig_runtime::zenoh::qos::CongestionControl::Block)
+        .await
+        .unwrap();
         // Each receiver handles its messages in order: once the refusals and the answer are
         // out, every malformed message before them has been counted.
         let (mut refused, mut answered, mut too_old) = (false, false, false);
