@@ -175,9 +175,9 @@ fn on_the_lever_with_bouc_wen_friction_each_effect_is_named_alone_and_clean_data
 
 #[test]
 fn on_the_link_equation_each_effect_is_named_alone_and_clean_data_gets_nothing() {
-    // 10 of 14 on these seeds; over the table's 96 cases (SEEDS=12 PLANT=link) 68 of 84
-    // effects alone and 12 of 12 clean (a small lag under the noise goes unnamed).
-    plant_meets_its_targets(Plant::Link, 0.7, 0.7);
+    // 12 of 14 on these seeds: the two lags left unnamed are within 1–3 % of the clean
+    // twin's floor (under the noise: nothing can name them from these data).
+    plant_meets_its_targets(Plant::Link, 0.8, 0.8);
 }
 
 /// One case: even seeds a multi-sine, odd ones ramp-and-hold.

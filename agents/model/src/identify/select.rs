@@ -483,8 +483,12 @@ fn split_times(s: &Signals, rows: &[usize], e: &[f64], on: Place) -> Vec<Shaped>
         } else {
             gg
         };
-        if denom > 0.0 && n_after > 2.0 && n_after < total_n - 2.0 {
-            gains.push((s.t_rel[i], centred * centred / denom));
+        // A jump in a run's first or last 2 % is a constant offset (a candidate of its own,
+        // with one parameter fewer), not a step.
+        let t = s.t_rel[i];
+        let inside = t > 0.02 * s.duration && t < 0.98 * s.duration;
+        if denom > 0.0 && n_after > 2.0 && n_after < total_n - 2.0 && inside {
+            gains.push((t, centred * centred / denom));
         }
     }
     gains.sort_by(|a, b| b.1.total_cmp(&a.1));
@@ -630,7 +634,8 @@ fn settle_restoring(
         p.restoring = Some(refit_restoring(p, chosen, &rows.fit)?);
         let mut moved = false;
         for k in 0..chosen.len() {
-            if !chosen[k].effect.is_input() {
+            // A stop's onsets were found against a loop bent to hold the stop: searched again.
+            if !chosen[k].effect.is_input() && chosen[k].effect != Effect::HardStop {
                 continue;
             }
             let Some((_, grid)) = cands.iter().find(|(e, _)| *e == chosen[k].effect) else {
@@ -705,46 +710,57 @@ fn search(
     let mut tried = grid.len();
     let best = |v: &[(Shaped, f64)]| v.iter().copied().min_by(|a, b| a.1.total_cmp(&b.1));
     // Two levels of refinement between the best point's neighbours: a shape off by a
-    // fraction of the grid's spacing leaves structure that a companion would pick up.
-    let mut same: Vec<f64> = Vec::new();
-    if let Some((b, _)) = best(&scored) {
-        same = grid
-            .iter()
-            .filter(|g| g.on == b.on && g.shape.is_finite() && g.shape.signum() == b.shape.signum())
-            .map(|g| g.shape)
-            .collect();
-    }
-    for _ in 0..2 {
-        let Some((b, _)) = best(&scored) else { break };
-        if !b.shape.is_finite() || same.len() < 3 {
-            break;
+    // fraction of the grid's spacing leaves structure that a companion would pick up. A hard
+    // stop has two onsets, each refined in turn.
+    type Coordinate = (fn(&Shaped) -> f64, fn(Shaped, f64) -> Shaped);
+    let coordinates: [Coordinate; 2] = [
+        (|c| c.shape, |c, v| Shaped { shape: v, ..c }),
+        (|c| c.lower, |c, v| Shaped { lower: v, ..c }),
+    ];
+    for (get, set) in coordinates {
+        let mut same: Vec<f64> = Vec::new();
+        if let Some((b, _)) = best(&scored) {
+            same = grid
+                .iter()
+                .filter(|g| {
+                    g.on == b.on && get(g).is_finite() && get(g).signum() == get(&b).signum()
+                })
+                .map(get)
+                .collect();
         }
-        let below = same
-            .iter()
-            .copied()
-            .filter(|v| *v < b.shape)
-            .fold(f64::NAN, f64::max);
-        let above = same
-            .iter()
-            .copied()
-            .filter(|v| *v > b.shape)
-            .fold(f64::NAN, f64::min);
-        let lo = if below.is_finite() { below } else { b.shape };
-        let hi = if above.is_finite() { above } else { b.shape };
-        let mut next = vec![lo, b.shape, hi];
-        for j in 1..8 {
-            let shape = lo + (hi - lo) * j as f64 / 8.0;
-            next.push(shape);
-            if (shape - b.shape).abs() <= 1e-12 * b.shape.abs() || shape == 0.0 {
-                continue;
+        for _ in 0..2 {
+            let Some((b, _)) = best(&scored) else { break };
+            let at = get(&b);
+            if !at.is_finite() || same.len() < 3 {
+                break;
             }
-            tried += 1;
-            let cand = Shaped { shape, ..b };
-            if let Some(err) = trial_at(cand) {
-                scored.push((cand, err));
+            let below = same
+                .iter()
+                .copied()
+                .filter(|v| *v < at)
+                .fold(f64::NAN, f64::max);
+            let above = same
+                .iter()
+                .copied()
+                .filter(|v| *v > at)
+                .fold(f64::NAN, f64::min);
+            let lo = if below.is_finite() { below } else { at };
+            let hi = if above.is_finite() { above } else { at };
+            let mut next = vec![lo, at, hi];
+            for j in 1..8 {
+                let v = lo + (hi - lo) * j as f64 / 8.0;
+                next.push(v);
+                if (v - at).abs() <= 1e-12 * at.abs() || v == 0.0 {
+                    continue;
+                }
+                tried += 1;
+                let cand = set(b, v);
+                if let Some(err) = trial_at(cand) {
+                    scored.push((cand, err));
+                }
             }
+            same = next;
         }
-        same = next;
     }
     best(&scored).map(|(c, e)| (c, e, tried))
 }
@@ -764,15 +780,51 @@ pub(crate) fn rate_window(
     rows: &Rows,
     opts: &Options,
 ) -> Result<f64, IdentifyError> {
+    let w = rate_window_knowing(raw, rows, opts, &[])?;
+    if opts.rate_window.is_some() || opts.model != Declared::Link {
+        return Ok(w);
+    }
+    // An effect with a shape the nuisance columns lack (a torque step, above all) leaves a
+    // residual that no window fits, and the window chosen against it can smear q̈ until the
+    // inertia fits as nothing and a lag stands in for it (N·δ·q̈). What a first selection finds,
+    // lags aside, is known for a second choice.
+    raw.set_rate_window(w);
+    let dt = super::rows::sampling_step(&raw.runs);
+    let duration = raw
+        .runs
+        .iter()
+        .map(|r| r.t[r.t.len() - 1] - r.t[0])
+        .fold(0.0f64, f64::max);
+    let (cands, _) = candidates(raw, opts, dt, duration);
+    let known: Vec<Shaped> = forward(&mut raw.clone(), &cands, rows, opts, &mut || {})?
+        .chosen
+        .into_iter()
+        .filter(|c| c.effect != Effect::SensorDelay)
+        .collect();
+    if known.is_empty() {
+        return Ok(w);
+    }
+    rate_window_knowing(raw, rows, opts, &known)
+}
+
+/// [`rate_window`]'s choice with the effects `known` among the nuisance columns.
+fn rate_window_knowing(
+    raw: &mut Problem,
+    rows: &Rows,
+    opts: &Options,
+    known: &[Shaped],
+) -> Result<f64, IdentifyError> {
     match opts.rate_window {
         Some(w) => Ok(w),
         None if opts.model == Declared::Link => {
             let dt = super::rows::sampling_step(&raw.runs);
-            let nuisance: Vec<Shaped> = candidates(raw, opts, dt, 1.0)
+            let mut nuisance: Vec<Shaped> = candidates(raw, opts, dt, 1.0)
                 .0
                 .iter()
                 .flat_map(|(_, g)| g.iter().filter(|c| c.shape.is_nan()).copied())
+                .filter(|c| known.iter().all(|k| k.effect != c.effect))
                 .collect();
+            nuisance.extend_from_slice(known);
             let mut scored = Vec::new();
             for w in [0.01, 0.02, 0.04, 0.08] {
                 raw.set_rate_window(w);
