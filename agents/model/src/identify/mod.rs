@@ -421,12 +421,7 @@ pub fn identify(
 
     // Candidates, then forward selection on the fit rows.
     let dt = rows::sampling_step(&p.runs);
-    let duration = p
-        .runs
-        .iter()
-        .map(|r| r.t[r.t.len() - 1] - r.t[0])
-        .fold(0.0f64, f64::max);
-    let (candidates, not_applicable) = select::candidates(&p, opts, dt, duration);
+    let (candidates, not_applicable) = select::candidates(&p, opts, dt, rows::longest_run(&p.runs));
     let per_round: usize = candidates.iter().map(|(_, g)| g.len() + 7).sum();
     let total = per_round * (opts.max_effects + 1).min(candidates.len() + 1);
     let mut done = 0usize;

@@ -441,6 +441,13 @@ pub(crate) fn resolution(x: &[f64]) -> f64 {
     steps[steps.len() / 20]
 }
 
+/// The longest run's duration [s].
+pub(crate) fn longest_run(runs: &[Run]) -> f64 {
+    runs.iter()
+        .map(|r| r.t[r.t.len() - 1] - r.t[0])
+        .fold(0.0f64, f64::max)
+}
+
 /// The median sampling step over the runs [s] (the smallest run's).
 pub(crate) fn sampling_step(runs: &[Run]) -> f64 {
     runs.iter()

@@ -790,12 +790,7 @@ pub(crate) fn rate_window(
     // lags aside, is known for a second choice.
     raw.set_rate_window(w);
     let dt = super::rows::sampling_step(&raw.runs);
-    let duration = raw
-        .runs
-        .iter()
-        .map(|r| r.t[r.t.len() - 1] - r.t[0])
-        .fold(0.0f64, f64::max);
-    let (cands, _) = candidates(raw, opts, dt, duration);
+    let (cands, _) = candidates(raw, opts, dt, super::rows::longest_run(&raw.runs));
     let known: Vec<Shaped> = forward(&mut raw.clone(), &cands, rows, opts, &mut || {})?
         .chosen
         .into_iter()
