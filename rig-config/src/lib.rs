@@ -171,14 +171,17 @@ pub struct JointConfig {
     pub effects: JointEffects,
 }
 
-/// What `rig identify --apply` wrote into `[joint.effects]`: the live corrections the
-/// estimator makes to the joint's samples before its model sees them.
+/// What `rig identify --apply` wrote into `[joint.effects]`: the sensor zeros the estimator
+/// takes off each sample before its model sees it, and the effects its lever joint model
+/// applies live ([`rig_model::live`]).
 #[derive(Debug, Clone, Copy, Default, PartialEq)]
 pub struct JointEffects {
     /// The torque sensor reads this much high: subtracted from its readings [N·m].
     pub torque_offset_nm: f64,
     /// The deflection encoder reads this much high: subtracted from φ [rad].
     pub encoder_offset_rad: f64,
+    /// Backlash, hard stop, ripple and a sensor lag (lever joints only).
+    pub live: rig_model::live::LiveEffects,
 }
 
 /// Gains of the impedance observer.

@@ -78,6 +78,15 @@ pub struct RawJoint {
 pub struct RawEffects {
     pub torque_offset_nm: Option<f64>,
     pub encoder_offset_deg: Option<f64>,
+    pub backlash_half_width_deg: Option<f64>,
+    pub stop_onset_deg: Option<f64>,
+    pub stop_rate_nm_per_rad: Option<f64>,
+    pub stop_onset_negative_deg: Option<f64>,
+    pub stop_rate_negative_nm_per_rad: Option<f64>,
+    pub ripple_amplitude_nm: Option<f64>,
+    pub ripple_period_deg: Option<f64>,
+    pub ripple_phase_deg: Option<f64>,
+    pub torque_lag_ms: Option<f64>,
 }
 
 #[derive(Debug, Deserialize)]

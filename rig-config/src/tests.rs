@@ -330,6 +330,76 @@ fn joint_effects_are_read_in_lab_units_and_a_bad_zero_is_named() {
 }
 
 #[test]
+fn live_effects_are_read_in_si_and_each_bad_or_lone_field_is_named() {
+    let (p, src) = example("bench.toml");
+    let with = |body: &str| {
+        src.replacen(
+            "[joint.limits]",
+            &format!("[joint.effects]\n{body}\n[joint.limits]"),
+            1,
+        )
+    };
+    let e = parse(
+        &p,
+        &with(
+            "backlash_half_width_deg = 0.3\nstop_onset_negative_deg = -2.0\nstop_rate_negative_nm_per_rad = 4.0\n\
+             ripple_amplitude_nm = 0.01\nripple_period_deg = 3.0\nripple_phase_deg = 90.0\ntorque_lag_ms = -12.0\n",
+        ),
+    )
+    .unwrap()
+    .joints[0]
+        .effects
+        .live;
+    assert!((e.backlash_half_width_rad - 0.3f64.to_radians()).abs() < 1e-15);
+    let stop = e.stop.unwrap();
+    assert!((stop.onset_negative_rad + 2f64.to_radians()).abs() < 1e-15);
+    assert_eq!(
+        (stop.rate_negative_nm_per_rad, stop.rate_nm_per_rad),
+        (4.0, 0.0)
+    );
+    let r = e.ripple.unwrap();
+    assert!((r.period_rad - 3f64.to_radians()).abs() < 1e-15);
+    assert!((r.phase_rad - std::f64::consts::FRAC_PI_2).abs() < 1e-15);
+    assert!((e.torque_lag_s + 0.012).abs() < 1e-15);
+    // A negative gap, a stop's onset on the wrong side, a rate without its onset, a ripple
+    // without its period: every one named at once.
+    let errs = parse(
+        &p,
+        &with("backlash_half_width_deg = -1.0\nstop_onset_deg = -3.0\nstop_rate_nm_per_rad = 2.0\nstop_rate_negative_nm_per_rad = 1.0\nripple_amplitude_nm = 0.1\ntorque_lag_ms = nan\n"),
+    )
+    .expect_err("refused")
+    .0;
+    let fields: Vec<&str> = errs.iter().map(|e| e.field.as_str()).collect();
+    assert_eq!(
+        fields,
+        [
+            "joint[0].effects.backlash_half_width_deg",
+            "joint[0].effects.stop_onset_deg",
+            "joint[0].effects.torque_lag_ms",
+            "joint[0].effects.stop_rate_negative_nm_per_rad",
+            "joint[0].effects.ripple_amplitude_nm",
+        ],
+        "{errs:?}"
+    );
+    assert!(
+        errs[3].message.contains("stop_onset_negative_deg"),
+        "{}",
+        errs[3].message
+    );
+    // An AWAS joint has no restoring model to apply them to.
+    let (p, src) = example("awas.toml");
+    let src = src.replacen(
+        "[joint.limits]",
+        "[joint.effects]\ntorque_lag_ms = 5.0\n\n[joint.limits]",
+        1,
+    );
+    let errs = parse(&p, &src).expect_err("refused").0;
+    assert_eq!(errs.len(), 1, "{errs:?}");
+    assert_eq!(errs[0].field, "joint[0].effects.torque_lag_ms");
+    assert!(errs[0].message.contains("lever"), "{}", errs[0].message);
+}
+
+#[test]
 fn a_watchdog_of_ages_is_refused() {
     let e = errors_after("bench.toml", "watchdog_ms = 500.0", "watchdog_ms = 1e300");
     assert_eq!(e.len(), 1, "{e:?}");

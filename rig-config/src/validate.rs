@@ -441,7 +441,8 @@ fn joint(
         }
     };
     let limits = limits(c, &p.key("limits"), &j.limits, &kind, range)?;
-    let effects = effects(c, &p.key("effects"), j.effects.as_ref())?;
+    let lever = matches!(kind, JointKind::Lever { .. });
+    let effects = effects(c, &p.key("effects"), j.effects.as_ref(), lever)?;
     Some(JointConfig {
         name: j.name.clone(),
         index,
@@ -453,29 +454,218 @@ fn joint(
     })
 }
 
-/// `[joint.effects]`: finite, and within what a sensor's zero can be off by.
-fn effects(c: &mut Collector<'_>, p: &FieldPath, e: Option<&RawEffects>) -> Option<JointEffects> {
+/// `[joint.effects]`: sensor zeros within what a zero can be off by; the live effects of a
+/// lever joint's model (rig_model::live) with their signs, each with what it needs beside it.
+fn effects(
+    c: &mut Collector<'_>,
+    p: &FieldPath,
+    e: Option<&RawEffects>,
+    lever: bool,
+) -> Option<JointEffects> {
     let Some(e) = e else {
         return Some(JointEffects::default());
     };
     let mut ok = true;
-    let mut bounded =
-        |c: &mut Collector<'_>, field: &'static str, v: Option<f64>, limit: f64, unit: &str| {
-            let v = v.unwrap_or(0.0);
-            if !(v.is_finite() && v.abs() <= limit) {
-                c.push(
-                    &p.key(field),
-                    format!("{v} is not a sensor zero: give a number within ±{limit} {unit}"),
-                );
-                ok = false;
+    // `v` (0 when absent) must lie in [lo, hi]; `what` says what the field is.
+    let mut within = |c: &mut Collector<'_>,
+                      field: &'static str,
+                      v: Option<f64>,
+                      (lo, hi): (f64, f64),
+                      what: &str| {
+        let x = v.unwrap_or(0.0);
+        if !(x.is_finite() && (lo..=hi).contains(&x)) {
+            c.push(
+                &p.key(field),
+                format!("{x} is not {what}: give a number in [{lo}, {hi}]"),
+            );
+            ok = false;
+        }
+        x
+    };
+    // Each field, its range and what it is (in the order of the names bound below).
+    type Bounded = (&'static str, Option<f64>, (f64, f64), &'static str);
+    let fields: [Bounded; 11] = [
+        (
+            "torque_offset_nm",
+            e.torque_offset_nm,
+            (-1e3, 1e3),
+            "a sensor zero [N·m]",
+        ),
+        (
+            "encoder_offset_deg",
+            e.encoder_offset_deg,
+            (-180.0, 180.0),
+            "a sensor zero [deg]",
+        ),
+        (
+            "backlash_half_width_deg",
+            e.backlash_half_width_deg,
+            (0.0, 10.0),
+            "a gap's half-width [deg]",
+        ),
+        (
+            "stop_onset_deg",
+            e.stop_onset_deg,
+            (0.0, 90.0),
+            "where a stop on the wound side begins [deg]",
+        ),
+        (
+            "stop_rate_nm_per_rad",
+            e.stop_rate_nm_per_rad,
+            (0.0, 1e6),
+            "a stop's stiffness [N·m/rad]",
+        ),
+        (
+            "stop_onset_negative_deg",
+            e.stop_onset_negative_deg,
+            (-90.0, 0.0),
+            "where a stop on the unwound side begins [deg]",
+        ),
+        (
+            "stop_rate_negative_nm_per_rad",
+            e.stop_rate_negative_nm_per_rad,
+            (0.0, 1e6),
+            "a stop's stiffness [N·m/rad]",
+        ),
+        (
+            "ripple_amplitude_nm",
+            e.ripple_amplitude_nm,
+            (0.0, 1e3),
+            "a ripple's amplitude [N·m]",
+        ),
+        (
+            "ripple_period_deg",
+            e.ripple_period_deg,
+            (0.0, 360.0),
+            "a ripple's period [deg]",
+        ),
+        (
+            "ripple_phase_deg",
+            e.ripple_phase_deg,
+            (-360.0, 360.0),
+            "a phase [deg]",
+        ),
+        (
+            "torque_lag_ms",
+            e.torque_lag_ms,
+            (-1000.0, 1000.0),
+            "a lag between the sensors [ms]",
+        ),
+    ];
+    let [
+        torque,
+        encoder,
+        gap,
+        on,
+        k_on,
+        under,
+        k_under,
+        amp,
+        period,
+        phase,
+        lag,
+    ] = fields.map(|(field, v, range, what)| within(c, field, v, range, what));
+    // A field that means nothing without its partner.
+    for (field, given, partner, has_partner) in [
+        (
+            "stop_rate_nm_per_rad",
+            e.stop_rate_nm_per_rad.is_some(),
+            "stop_onset_deg",
+            e.stop_onset_deg.is_some(),
+        ),
+        (
+            "stop_onset_deg",
+            e.stop_onset_deg.is_some(),
+            "stop_rate_nm_per_rad",
+            e.stop_rate_nm_per_rad.is_some(),
+        ),
+        (
+            "stop_rate_negative_nm_per_rad",
+            e.stop_rate_negative_nm_per_rad.is_some(),
+            "stop_onset_negative_deg",
+            e.stop_onset_negative_deg.is_some(),
+        ),
+        (
+            "stop_onset_negative_deg",
+            e.stop_onset_negative_deg.is_some(),
+            "stop_rate_negative_nm_per_rad",
+            e.stop_rate_negative_nm_per_rad.is_some(),
+        ),
+        (
+            "ripple_amplitude_nm",
+            e.ripple_amplitude_nm.is_some(),
+            "ripple_period_deg",
+            e.ripple_period_deg.is_some(),
+        ),
+        (
+            "ripple_phase_deg",
+            e.ripple_phase_deg.is_some(),
+            "ripple_period_deg",
+            e.ripple_period_deg.is_some(),
+        ),
+        (
+            "ripple_period_deg",
+            e.ripple_period_deg.is_some(),
+            "ripple_amplitude_nm",
+            e.ripple_amplitude_nm.is_some(),
+        ),
+    ] {
+        if given && !has_partner {
+            c.push(&p.key(field), format!("needs `{partner}` beside it"));
+            ok = false;
+        }
+    }
+    if e.ripple_period_deg.is_some() && period <= 0.0 {
+        c.push(
+            &p.key("ripple_period_deg"),
+            "a ripple's period must be > 0 deg",
+        );
+        ok = false;
+    }
+    let live = rig_model::live::LiveEffects {
+        backlash_half_width_rad: gap.to_radians(),
+        stop: (e.stop_onset_deg.is_some() || e.stop_onset_negative_deg.is_some()).then(|| {
+            rig_model::live::HardStop {
+                onset_rad: on.to_radians(),
+                rate_nm_per_rad: k_on,
+                onset_negative_rad: under.to_radians(),
+                rate_negative_nm_per_rad: k_under,
             }
-            v
-        };
-    let torque = bounded(c, "torque_offset_nm", e.torque_offset_nm, 1e3, "N·m");
-    let encoder = bounded(c, "encoder_offset_deg", e.encoder_offset_deg, 180.0, "deg");
+        }),
+        ripple: (period > 0.0).then(|| rig_model::live::Ripple {
+            amplitude_nm: amp,
+            period_rad: period.to_radians(),
+            phase_rad: phase.to_radians(),
+        }),
+        torque_lag_s: lag * 1e-3,
+    };
+    if !lever && !live.is_empty() {
+        let field = [
+            (
+                "backlash_half_width_deg",
+                e.backlash_half_width_deg.is_some(),
+            ),
+            ("stop_onset_deg", e.stop_onset_deg.is_some()),
+            (
+                "stop_onset_negative_deg",
+                e.stop_onset_negative_deg.is_some(),
+            ),
+            ("ripple_period_deg", e.ripple_period_deg.is_some()),
+            ("torque_lag_ms", e.torque_lag_ms.is_some()),
+        ]
+        .into_iter()
+        .find_map(|(f, given)| given.then_some(f))
+        .unwrap_or("backlash_half_width_deg");
+        c.push(
+            &p.key(field),
+            "only a lever joint's restoring model applies it live; an AWAS joint takes the sensor zeros alone",
+        );
+        ok = false;
+    }
     ok.then_some(JointEffects {
         torque_offset_nm: torque,
         encoder_offset_rad: encoder.to_radians(),
+        live,
     })
 }
 

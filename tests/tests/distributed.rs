@@ -790,15 +790,42 @@ fn a_bench_joints_torque_offset_is_diagnosed_live_and_shown_in_rerun() {
 
 #[test]
 fn a_recording_of_the_bench_is_identified_and_its_undeclared_offset_named() {
-    // Live rig → `rig record` (MCAP) → `rig identify` on the recording.
+    // Live rig → `rig record` (MCAP) → `rig identify` on the recording → --apply writes the
+    // offset into a copy of the config's [joint.effects]; the rig run with it (the sensor still
+    // reads 0.02 N·m high) shows a live residual at least halved, down to the sensor's noise.
     let _one_at_a_time = serial();
-    let dir = viz_dir("identify-mcap");
-    let (mcap, effects, report) = (
-        dir.join("bench.mcap"),
-        dir.join("offset.toml"),
-        dir.join("bench-id.json"),
+    let (v, [(before, _), (after, _)]) =
+        record_identify_apply("identify-mcap", "torque_offset_nm = 0.02\n");
+    assert!(v["samples"].as_u64().unwrap() > 5000, "{v}");
+    assert_eq!(v["effects"][0]["name"], "offset", "{v:#}");
+    // The level the sensor reads high by at the end of the run: the bias, plus a jump where
+    // the fit placed one (the live run's first second — the spring's first loading from rest
+    // — may be fitted as a step before the steady offset).
+    let p = &v["effects"][0]["params"];
+    let level = p["bias_nm"].as_f64().unwrap() + p["jump_nm"].as_f64().unwrap_or(0.0);
+    assert!((level - 0.02).abs() < 0.005, "{p}");
+    assert!(v["after"]["rmse"].as_f64().unwrap() < 0.5 * v["before"]["rmse"].as_f64().unwrap());
+    println!("live residual RMS: {before:.4} N·m as declared, {after:.4} N·m with --apply");
+    assert!(after <= 0.5 * before, "before {before}, after {after}");
+    assert!(
+        after < 0.006,
+        "after {after} N·m: the 3 mN·m sensor noise is the floor"
     );
-    std::fs::write(&effects, "torque_offset_nm = 0.02\n").unwrap();
+}
+
+/// Records the bench with the simulated joint carrying `sim_effects` (a `--sim-effects` TOML),
+/// identifies the recording (`--apply` to a copy of the config), then runs the rig as declared
+/// and as applied with the same joint: the identify report, and for each run the live residual
+/// RMS [N·m] and whether the estimator's residual monitor put out a diagnosis.
+fn record_identify_apply(name: &str, sim_effects: &str) -> (serde_json::Value, [(f64, bool); 2]) {
+    let dir = viz_dir(name);
+    let (mcap, effects, report, applied) = (
+        dir.join("bench.mcap"),
+        dir.join("effects.toml"),
+        dir.join("bench-id.json"),
+        dir.join("bench-applied.toml"),
+    );
+    std::fs::write(&effects, sim_effects).unwrap();
     let hub = format!("tcp/127.0.0.1:{}", free_port());
     let bench = Path::new(env!("CARGO_MANIFEST_DIR")).join("../rig-config/examples/bench.toml");
     let mut rec = spawn(
@@ -830,48 +857,20 @@ fn a_recording_of_the_bench_is_identified_and_its_undeclared_offset_named() {
         .unwrap();
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
     assert!(rec.0.wait().unwrap().success());
-    let o = Command::new(bin("rig"))
-        .args(["identify", "--joint", "j1", "--data"])
-        .arg(&mcap)
-        .arg("--report")
-        .arg(&report)
-        .output()
-        .unwrap();
-    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
-    let v: serde_json::Value = serde_json::from_slice(&std::fs::read(&report).unwrap()).unwrap();
-    assert!(v["samples"].as_u64().unwrap() > 5000, "{v}");
-    assert_eq!(v["effects"][0]["name"], "offset", "{v:#}");
-    // The level the sensor reads high by at the end of the run: the bias, plus a jump where
-    // the fit placed one (the live run's first second — the spring's first loading from rest
-    // — may be fitted as a step before the steady offset).
-    let p = &v["effects"][0]["params"];
-    let level = p["bias_nm"].as_f64().unwrap() + p["jump_nm"].as_f64().unwrap_or(0.0);
-    assert!((level - 0.02).abs() < 0.005, "{p}");
-    assert!(v["after"]["rmse"].as_f64().unwrap() < 0.5 * v["before"]["rmse"].as_f64().unwrap());
-
-    // Close the loop live: --apply writes the offset into a copy of the config's
-    // [joint.effects]; the rig run with it (the sensor still reads 0.02 N·m high) shows a
-    // live residual at least halved, down to the sensor's noise.
-    let applied = dir.join("bench-applied.toml");
     std::fs::copy(&bench, &applied).unwrap();
     let o = Command::new(bin("rig"))
         .args(["identify", "--joint", "j1", "--data"])
         .arg(&mcap)
         .arg("--report")
-        .arg(dir.join("bench-apply.json"))
+        .arg(&report)
         .arg("--apply")
         .arg(&applied)
         .output()
         .unwrap();
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
-    assert!(
-        std::fs::read_to_string(&applied)
-            .unwrap()
-            .contains("[joint.effects]"),
-        "{}",
-        String::from_utf8_lossy(&o.stdout)
-    );
-    let residual = |config: &Path| -> f64 {
+    println!("{}", String::from_utf8_lossy(&o.stdout));
+    let v: serde_json::Value = serde_json::from_slice(&std::fs::read(&report).unwrap()).unwrap();
+    let live = |config: &Path| -> (f64, bool) {
         let o = Command::new(bin("rig"))
             .arg("up")
             .arg("--config")
@@ -883,15 +882,54 @@ fn a_recording_of_the_bench_is_identified_and_its_undeclared_offset_named() {
             .unwrap();
         assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
         let summary = String::from_utf8_lossy(&o.stdout).into_owned();
-        summary_residual_rms(&summary, "j1")
+        let diagnosed =
+            String::from_utf8_lossy(&o.stderr).contains("diagnosis: residual structure");
+        (summary_residual_rms(&summary, "j1"), diagnosed)
     };
-    let (before, after) = (residual(&bench), residual(&applied));
+    (v, [live(&bench), live(&applied)])
+}
+
+#[test]
+fn backlash_found_on_a_recording_and_applied_live_brings_the_residual_to_the_sensor_noise() {
+    // A 12 mrad gap (half-width 6 mrad) in series with the bench joint's spring; the config's
+    // table knows nothing of it. Identify names it from the recording, --apply writes its
+    // half-width into [joint.effects], and the live model then feeds the spring the dead zone.
+    let _one_at_a_time = serial();
+    let (v, [(before, diagnosed), (after, still)]) =
+        record_identify_apply("apply-backlash", "backlash_rad = 0.012\n");
+    assert_eq!(v["effects"][0]["name"], "backlash", "{v:#}");
+    let half = v["effects"][0]["params"]["half_width_rad"]
+        .as_f64()
+        .unwrap();
+    assert!(
+        (half - 0.006).abs() < 0.0006,
+        "half-width {half} rad for 0.006"
+    );
     println!("live residual RMS: {before:.4} N·m as declared, {after:.4} N·m with --apply");
     assert!(after <= 0.5 * before, "before {before}, after {after}");
     assert!(
-        after < 0.006,
-        "after {after} N·m: the 3 mN·m sensor noise is the floor"
+        after < 0.0045,
+        "after {after} N·m: 3 mN·m of sensor noise is the floor"
     );
+    assert!(diagnosed, "the residual monitor saw structure as declared");
+    assert!(!still, "the diagnosis clears once the backlash is applied");
+}
+
+#[test]
+fn a_torque_sensor_lag_found_on_a_recording_is_applied_live_by_aligning_the_residual() {
+    // The bench's torque sensor reads 60 ms late: identify names a sensor_delay; live, the
+    // estimator compares each reading with its model's prediction 60 ms earlier.
+    let _one_at_a_time = serial();
+    let (v, [(before, diagnosed), (after, still)]) =
+        record_identify_apply("apply-lag", "sensor_delay_s = 0.06\n");
+    assert_eq!(v["effects"][0]["name"], "sensor_delay", "{v:#}");
+    let delay = v["effects"][0]["params"]["delay_s"].as_f64().unwrap();
+    assert!((delay - 0.06).abs() < 0.008, "delay {delay} s for 0.06");
+    println!("live residual RMS: {before:.4} N·m as declared, {after:.4} N·m with --apply");
+    assert!(after <= 0.5 * before, "before {before}, after {after}");
+    assert!(after < 0.0045, "after {after} N·m");
+    assert!(diagnosed, "the residual monitor saw structure as declared");
+    assert!(!still, "the diagnosis clears once the lag is applied");
 }
 
 /// Joint `joint`'s live residual RMS [N·m] from `rig up`'s summary table: the sixth column

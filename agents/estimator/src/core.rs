@@ -19,6 +19,7 @@ use crate::clock::{ClockEvent, ClockWatch};
 use rig_config::{JointKind, RigConfig, Topology};
 use rig_model::estimator::{JointReadings, RobotEstimator};
 use rig_model::hysteresis::RestoringTorqueModel;
+use rig_model::live::LiveJoint;
 use rig_model::monitor::ResidualMonitor;
 use rig_model::observer::{DecoupledObserver, ImpedanceSample};
 use rig_protocol::{
@@ -78,7 +79,7 @@ enum PerJoint {
 }
 
 enum JointModel {
-    Lever(Box<RestoringTorqueModel>),
+    Lever(Box<LiveJoint>),
     Awas(Box<DecoupledObserver>),
 }
 
@@ -200,22 +201,22 @@ impl EstimatorCore {
                 let models = cfg
                     .joints
                     .iter()
-                    .map(|j| lever_model(&j.kind))
+                    .map(|j| lever_model(&j.kind).map(|m| LiveJoint::new(m, j.effects.live)))
                     .collect::<Result<Vec<_>, _>>()?;
                 PerJoint::Robot(Box::new(RobotEstimator::new(robot, models)?))
             }
             Topology::Single | Topology::Bench => {
                 let ts = timing.period_ns as f64 * 1e-9;
                 let o = cfg.observer;
-                let model = |k: &JointKind| -> Result<JointModel, CoreError> {
-                    Ok(match k {
+                let model = |j: &rig_config::JointConfig| -> Result<JointModel, CoreError> {
+                    Ok(match &j.kind {
                         JointKind::Lever {
                             restoring,
                             dead_band_rad,
                             ..
-                        } => JointModel::Lever(Box::new(RestoringTorqueModel::new(
-                            (**restoring).clone(),
-                            *dead_band_rad,
+                        } => JointModel::Lever(Box::new(LiveJoint::new(
+                            RestoringTorqueModel::new((**restoring).clone(), *dead_band_rad),
+                            j.effects.live,
                         ))),
                         JointKind::Awas { dynamics, .. } => {
                             let motor = Some(rig_model::observer::MotorParams {
@@ -231,12 +232,7 @@ impl EstimatorCore {
                         }
                     })
                 };
-                PerJoint::Alone(
-                    cfg.joints
-                        .iter()
-                        .map(|j| model(&j.kind))
-                        .collect::<Result<_, _>>()?,
-                )
+                PerJoint::Alone(cfg.joints.iter().map(model).collect::<Result<_, _>>()?)
             }
         };
         Ok(Self {
@@ -522,9 +518,13 @@ impl EstimatorCore {
                 for (j, s) in slots.iter().enumerate() {
                     let Some(s) = s else { continue };
                     let pivot = s.pivot_m.unwrap_or(0.0);
-                    let Some((tau, k)) = est.update_joint(j, s.deflection_rad, pivot) else {
+                    let t_s = s.t_acq_ns as f64 * 1e-9;
+                    let Some((live, k)) =
+                        est.update_joint(j, t_s, s.deflection_rad, pivot, s.torque_nm)
+                    else {
                         continue;
                     };
+                    let tau = live.torque_nm;
                     torque[j] = tau;
                     stiffness[j] = k;
                     joint_out.push(JointEstimate {
@@ -537,7 +537,7 @@ impl EstimatorCore {
                         inertia_var: None,
                         damping_nms_per_rad: None,
                         damping_var: None,
-                        residual_nm: s.torque_nm.map(|m| m - tau),
+                        residual_nm: live.residual_nm,
                     });
                 }
                 if all {
@@ -550,6 +550,7 @@ impl EstimatorCore {
                         .collect();
                     match est.combine(
                         &JointReadings {
+                            t_s: t_ns as f64 * 1e-9,
                             motor: &motor,
                             deflection: &defl,
                             pivot: &pivot,
@@ -629,18 +630,19 @@ fn estimate_alone(joint: u16, s: &JointSample, model: &mut JointModel) -> Option
     match model {
         JointModel::Lever(m) => {
             let pivot = s.pivot_m.unwrap_or(0.0);
-            let tau = m.update(s.deflection_rad, pivot);
+            let t_s = s.t_acq_ns as f64 * 1e-9;
+            let live = m.update(t_s, s.deflection_rad, pivot, s.torque_nm);
             Some(JointEstimate {
                 joint,
                 seq: s.seq,
                 t_acq_ns: s.t_acq_ns,
-                torque_nm: tau,
-                stiffness_nm_per_rad: Some(m.curve().at(pivot).k),
+                torque_nm: live.torque_nm,
+                stiffness_nm_per_rad: Some(m.model().curve().at(pivot).k),
                 inertia_kg_m2: None,
                 inertia_var: None,
                 damping_nms_per_rad: None,
                 damping_var: None,
-                residual_nm: s.torque_nm.map(|m| m - tau),
+                residual_nm: live.residual_nm,
             })
         }
         JointModel::Awas(obs) => {

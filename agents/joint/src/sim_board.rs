@@ -12,7 +12,7 @@ use rig_model::awas::AwasState;
 use rig_sim::awas_plant::{AwasInputs, AwasPlant};
 use rig_sim::effects::Effects;
 use rig_sim::lever_joint::{LeverJointPlant, SpringHysteresis};
-use rig_sim::noise::{Noise, quantize};
+use rig_sim::noise::{DelayLine, Noise, quantize};
 use rig_sim::world::{HAND_STROKE_M, HAND_STROKE_S, StrokeWorld, bench_path};
 
 use crate::board::{Applied, BoardError, JointBoard, Reading, SafeState, Truth, WatchdogAction};
@@ -27,6 +27,8 @@ enum Sim {
         path: Vec<f64>,
         period: f64,
         plant: LeverJointPlant,
+        /// The torque sensor's lag (`sensor_delay_s`, whole samples).
+        lag: DelayLine,
     },
     Awas {
         plant: AwasPlant,
@@ -88,6 +90,7 @@ impl SimJoint {
                     path: bench_path((60.0 * cfg.rate_hz) as usize, period, 0.06, seed),
                     period,
                     plant: lever_plant(vsa)?,
+                    lag: DelayLine::new(effects.delay_samples(period)),
                 }
             }
             (JointKind::Awas { awas, dynamics }, _) => Sim::Awas {
@@ -155,12 +158,13 @@ impl SimJoint {
                 path,
                 period,
                 plant,
+                lag,
             } => {
                 let k = ((t / *period).round() as usize) % path.len().max(1);
                 let defl = path.get(k).copied().unwrap_or(0.0);
                 let tau = plant.torque(defl, t, dt);
                 let e = &self.effects;
-                let sensed = tau + e.ripple(defl) + e.stop(defl) + e.torque_offset_nm;
+                let sensed = lag.push(tau + e.ripple(defl) + e.stop(defl)) + e.torque_offset_nm;
                 Ok(Reading {
                     motor_rad: 0.0,
                     deflection_rad: quantize(defl + e.encoder_bias(t), res),

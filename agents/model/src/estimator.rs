@@ -9,7 +9,7 @@
 use nalgebra::{Matrix2, Vector2};
 use thiserror::Error;
 
-use crate::hysteresis::RestoringTorqueModel;
+use crate::live::{LiveJoint, LiveTorque};
 use crate::planar::{
     Configuration, KinematicsError, PlanarRobot, end_effector_force, operational_stiffness,
 };
@@ -28,6 +28,8 @@ pub enum EstimateError {
 /// One aligned set of joint measurements.
 #[derive(Debug, Clone, PartialEq)]
 pub struct JointReadings<'a> {
+    /// When they were taken [s] (any origin, non-decreasing from call to call).
+    pub t_s: f64,
     /// Motor angles θ_m [rad].
     pub motor: &'a [f64],
     /// Measured deflections φ [rad].
@@ -50,19 +52,18 @@ pub struct RobotEstimate {
     pub operational_stiffness: Matrix2<f64>,
 }
 
-/// Restoring-torque models of the actuated joints plus the robot's kinematics.
+/// Restoring-torque models of the actuated joints (with their live effects) plus the robot's
+/// kinematics.
 #[derive(Debug, Clone)]
 pub struct RobotEstimator {
     robot: PlanarRobot,
-    joints: Vec<RestoringTorqueModel>,
+    joints: Vec<LiveJoint>,
 }
 
 impl RobotEstimator {
-    /// One restoring-torque model per actuated joint, in joint order.
-    pub fn new(
-        robot: PlanarRobot,
-        joints: Vec<RestoringTorqueModel>,
-    ) -> Result<Self, EstimateError> {
+    /// One restoring-torque model per actuated joint, in joint order (`LiveJoint::from` a
+    /// bare model when no effect is applied).
+    pub fn new(robot: PlanarRobot, joints: Vec<LiveJoint>) -> Result<Self, EstimateError> {
         if joints.len() != robot.actuated() {
             return Err(EstimateError::JointCount {
                 expected: robot.actuated(),
@@ -81,11 +82,20 @@ impl RobotEstimator {
         self.joints.len()
     }
 
-    /// Feeds one joint's sample to its restoring-torque model: τ̂ and k̂ at the pivot.
+    /// Feeds one joint's sample taken at `t_s` [s] to its model: τ̂ (and the residual against
+    /// `measured`, the joint's torque reference, when it has one) and k̂ at the pivot.
     /// Non-finite input leaves the model unchanged (it returns its last estimate).
-    pub fn update_joint(&mut self, j: usize, deflection: f64, pivot: f64) -> Option<(f64, f64)> {
+    pub fn update_joint(
+        &mut self,
+        j: usize,
+        t_s: f64,
+        deflection: f64,
+        pivot: f64,
+        measured: Option<f64>,
+    ) -> Option<(LiveTorque, f64)> {
         let m = self.joints.get_mut(j)?;
-        Some((m.update(deflection, pivot), m.curve().at(pivot).k))
+        let out = m.update(t_s, deflection, pivot, measured);
+        Some((out, m.model().curve().at(pivot).k))
     }
 
     /// Combines one aligned set of joint readings and their torques into the end-effector
@@ -152,8 +162,8 @@ impl RobotEstimator {
             .from_independent(r.motor[0] + r.deflection[0], r.motor[1] + r.deflection[1])?;
         let (torque, stiffness): (Vec<f64>, Vec<f64>) = (0..n)
             .map(|j| {
-                self.update_joint(j, r.deflection[j], r.pivot[j])
-                    .unwrap_or((0.0, 0.0))
+                self.update_joint(j, r.t_s, r.deflection[j], r.pivot[j], None)
+                    .map_or((0.0, 0.0), |(t, k)| (t.torque_nm, k))
             })
             .unzip();
         self.combine(r, torque, stiffness)
@@ -163,7 +173,9 @@ impl RobotEstimator {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::hysteresis::{AS5048A_COUNT_RAD, RestoringCurve, RestoringParams};
+    use crate::hysteresis::{
+        AS5048A_COUNT_RAD, RestoringCurve, RestoringParams, RestoringTorqueModel,
+    };
     use crate::planar::FiveBar;
 
     fn estimator() -> RobotEstimator {
@@ -174,7 +186,7 @@ mod tests {
             n: 1.0,
         });
         let joints = (0..4)
-            .map(|_| RestoringTorqueModel::new(curve.clone(), AS5048A_COUNT_RAD))
+            .map(|_| RestoringTorqueModel::new(curve.clone(), AS5048A_COUNT_RAD).into())
             .collect();
         RobotEstimator::new(PlanarRobot::FiveBar(FiveBar::example()), joints).unwrap()
     }
@@ -191,6 +203,7 @@ mod tests {
         let defl: Vec<f64> = (0..4).map(|i| moved.theta[i] - motor[i]).collect();
         let pivot = [0.009; 4];
         est.update(&JointReadings {
+            t_s: 0.0,
             motor: &motor,
             deflection: &[0.0; 4],
             pivot: &pivot,
@@ -198,6 +211,7 @@ mod tests {
         .unwrap();
         let e = est
             .update(&JointReadings {
+                t_s: 1e-3,
                 motor: &motor,
                 deflection: &defl,
                 pivot: &pivot,
@@ -218,6 +232,7 @@ mod tests {
         let m = [1.0, -1.0, 1.0, 1.0];
         assert!(
             est.update(&JointReadings {
+                t_s: 1e-3,
                 motor: &m[..3],
                 deflection: &[0.0; 4],
                 pivot: &[0.0; 4]
@@ -225,6 +240,7 @@ mod tests {
             .is_err()
         );
         let e = est.update(&JointReadings {
+            t_s: 0.0,
             motor: &m,
             deflection: &[0.0, f64::NAN, 0.0, 0.0],
             pivot: &[0.0; 4],

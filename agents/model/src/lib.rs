@@ -23,6 +23,7 @@ pub mod estimator;
 pub mod hysteresis;
 pub mod identify;
 pub mod lever;
+pub mod live;
 pub mod monitor;
 pub mod observer;
 pub mod pchip;

@@ -2,7 +2,7 @@
 //! it the residual (measured − modelled torque) sample by sample. Over a sliding window it
 //! regresses the residual on what the cheapest effects of the library would add — a constant
 //! (`offset`), the direction of motion (`coulomb_friction`: the loop is off), the deflection
-//! rate (`viscous_friction`, or a sensor lag), the deflection itself (`stiffness_drift`: the
+//! rate (`viscous_friction`; `sensor_delay` when the sign gives energy back), the deflection itself (`stiffness_drift`: the
 //! spring rate moved since the model was fitted) — and reports a diagnosis when those explain
 //! most of the residual: structure has appeared. `rig identify` then does the full job
 //! offline.
@@ -42,6 +42,10 @@ impl Diagnosis {
             Effect::Offset => format!("{:+.3} N·m", self.size),
             Effect::CoulombFriction => format!("±{:.3} N·m", self.size),
             Effect::ViscousFriction => format!("{:.3} N·m·s/rad", self.size),
+            Effect::SensorDelay => format!(
+                "{:.3} N·m·s/rad against the rate: the torque reading lags the deflection",
+                self.size
+            ),
             _ => format!("{:+.3} N·m/rad", self.size),
         };
         format!(
@@ -197,9 +201,16 @@ impl ResidualMonitor {
         let (k, _) = (0..4)
             .map(|k| (k, rss_without(Some(k)) - full))
             .fold((0, f64::NEG_INFINITY), |a, b| if b.1 > a.1 { b } else { a });
+        // Against the rate with a negative sign the residual's loop gives energy back: no
+        // friction does that; a torque reading late behind the deflection (τ(t − δ) ≈ τ − δ·k·φ̇)
+        // does.
+        let effect = match cols[k].0 {
+            Effect::ViscousFriction if coefs[k] < 0.0 => Effect::SensorDelay,
+            e => e,
+        };
         Some(Diagnosis {
             present: false,
-            effect: cols[k].0,
+            effect,
             explained: 1.0 - full / total,
             rms: (total / n as f64).sqrt(),
             size: coefs[k],
@@ -270,5 +281,19 @@ mod tests {
             "{d:?}"
         );
         assert!((d[0].size - 0.5).abs() < 0.05);
+    }
+
+    #[test]
+    fn a_residual_against_the_rate_is_friction_with_it_and_a_lag_with_its_sign_reversed() {
+        // x = 0.05·sin(2π·0.7·t): friction b·ẋ dissipates; a late torque reading, −δ·k·ẋ,
+        // gives energy back.
+        let w = std::f64::consts::TAU * 0.7;
+        for (b, want) in [(0.2, Effect::ViscousFriction), (-0.2, Effect::SensorDelay)] {
+            let mut m = ResidualMonitor::new(2000, 250);
+            let d = run(&mut m, 0, 4000, |t, _| b * 0.05 * w * (w * t).cos());
+            assert_eq!(d.first().map(|d| d.effect), Some(want), "b {b}: {d:?}");
+            assert!((d[0].size - b).abs() < 0.05 * b.abs(), "{}", d[0].size);
+            assert!(d[0].text().contains(want.name()), "{}", d[0].text());
+        }
     }
 }

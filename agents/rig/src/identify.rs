@@ -81,10 +81,11 @@ pub struct Args {
     #[arg(long, value_name = "OUT.json")]
     report: PathBuf,
     /// Write what has a live form into CONFIG's `[joint.effects]` for --joint (in place,
-    /// comments kept, validated first): the sensors' zeros — a torque-sensor offset, an
-    /// encoder offset (a zero that jumped: its level after the jump; and the files' rest
-    /// zeros when they were tared). Every other effect found is refused by name: the live
-    /// model has no form of it yet. Needs --model restoring (the config's model) and --joint
+    /// comments kept, validated first): the sensors' zeros (a zero that jumped: its level
+    /// after the jump; the files' rest zeros when they were tared), backlash, a hard stop, a
+    /// periodic ripple and a lag between the sensors (the estimator aligns the residual).
+    /// Friction, drift, hysteresis, the lever's geometry and gravity are refused by name, with
+    /// why. Needs --model restoring (the config's model) and --joint
     #[arg(long, value_name = "CONFIG", requires = "joint")]
     apply: Option<PathBuf>,
 }
@@ -212,53 +213,71 @@ pub fn run(a: &Args) -> Result<(), CliError> {
     Ok(())
 }
 
-/// What of `res` has a live form: the sensors' constant zeros [N·m, rad], and the effects
-/// refused with why.
-fn live_effects(res: &Identified) -> ((f64, f64), Vec<String>) {
-    let (mut torque, mut encoder) = (0.0, 0.0);
-    // Tared files: their rest zeros were taken off before the fit; live data keeps them.
-    if !res.tare.is_empty() {
-        let n = res.tare.len() as f64;
-        torque += res.tare.iter().map(|t| t.torque_zero).sum::<f64>() / n;
-        encoder += res.tare.iter().map(|t| t.deflection_zero).sum::<f64>() / n;
+/// Every key `--apply` owns in `[joint.effects]` (a new identification replaces them all).
+const LIVE_KEYS: [&str; 11] = [
+    "torque_offset_nm",
+    "encoder_offset_deg",
+    "backlash_half_width_deg",
+    "stop_onset_deg",
+    "stop_rate_nm_per_rad",
+    "stop_onset_negative_deg",
+    "stop_rate_negative_nm_per_rad",
+    "ripple_amplitude_nm",
+    "ripple_period_deg",
+    "ripple_phase_deg",
+    "torque_lag_ms",
+];
+
+/// `[joint.effects]` keys and values in lab units, in the order written.
+fn live_fields(a: &rig_model::live::Applied) -> Vec<(&'static str, f64)> {
+    let e = &a.effects;
+    let mut f = vec![
+        ("torque_offset_nm", a.torque_offset_nm),
+        ("encoder_offset_deg", a.encoder_offset_rad.to_degrees()),
+    ];
+    if e.backlash_half_width_rad > 0.0 {
+        f.push((
+            "backlash_half_width_deg",
+            e.backlash_half_width_rad.to_degrees(),
+        ));
     }
-    let mut refused = Vec::new();
-    for f in &res.effects {
-        let p = |name: &str| f.params.iter().find(|(n, _)| *n == name).map(|(_, v)| *v);
-        // A zero that jumped during the run (a slipping mount or encoder, or a first loading
-        // from rest fitted as a step): the level after the jump is the sensor's zero now.
-        if let (Effect::Offset, Some(at)) = (f.effect, p("jump_at_s")) {
-            eprintln!(
-                "rig identify --apply: the {} zero jumped {at:.1} s into the run; its level after the jump is applied",
-                if f.on == Some(Place::Deflection) {
-                    "encoder's"
-                } else {
-                    "torque sensor's"
-                }
-            );
+    if let Some(s) = &e.stop {
+        if s.rate_nm_per_rad > 0.0 {
+            f.push(("stop_onset_deg", s.onset_rad.to_degrees()));
+            f.push(("stop_rate_nm_per_rad", s.rate_nm_per_rad));
         }
-        match (f.effect, f.on) {
-            (Effect::Offset, Some(Place::Torque)) => {
-                torque += p("bias_nm").unwrap_or(0.0) + p("jump_nm").unwrap_or(0.0);
-            }
-            (Effect::Offset, Some(Place::Deflection)) => {
-                encoder += p("bias_rad").unwrap_or(0.0) + p("jump_rad").unwrap_or(0.0);
-            }
-            (e, _) => refused.push(format!(
-                "{}: the live model has no form of it yet (the estimator runs the config's restoring table); fit it into the table with `rig calibrate`, or fix it at the joint",
-                e.name()
-            )),
+        if s.rate_negative_nm_per_rad > 0.0 {
+            f.push(("stop_onset_negative_deg", s.onset_negative_rad.to_degrees()));
+            f.push(("stop_rate_negative_nm_per_rad", s.rate_negative_nm_per_rad));
         }
     }
-    ((torque, encoder), refused)
+    if let Some(r) = &e.ripple {
+        f.push(("ripple_amplitude_nm", r.amplitude_nm));
+        f.push(("ripple_period_deg", r.period_rad.to_degrees()));
+        f.push(("ripple_phase_deg", r.phase_rad.to_degrees()));
+    }
+    if e.torque_lag_s != 0.0 {
+        f.push(("torque_lag_ms", e.torque_lag_s * 1e3));
+    }
+    f
 }
 
 /// `--apply`: writes the live effects into `config`'s `[joint.effects]` of `joint`.
 fn apply(res: &Identified, config: &Path, joint: &str) -> Result<(), CliError> {
-    let ((torque, encoder), refused) = live_effects(res);
-    for r in &refused {
-        eprintln!("rig identify --apply: refused {r}");
+    let live = rig_model::live::from_found(&res.effects, &res.tare);
+    for (place, at) in &live.jumps {
+        eprintln!(
+            "rig identify --apply: the {} zero jumped {at:.1} s into the run; its level after the jump is applied",
+            match place {
+                Place::Deflection => "encoder's",
+                Place::Torque => "torque sensor's",
+            }
+        );
     }
+    for (e, why) in &live.refused {
+        eprintln!("rig identify --apply: refused {}: {why}", e.name());
+    }
+    let fields = live_fields(&live);
     let mut doc = crate::config_edit::open(config)?;
     let t = crate::config_edit::joint(&mut doc, joint)?;
     let effects = t
@@ -271,23 +290,37 @@ fn apply(res: &Identified, config: &Path, joint: &str) -> Result<(), CliError> {
                 config.display()
             ))
         })?;
-    let round = |v: f64, digits: i32| (v * 10f64.powi(digits)).round() / 10f64.powi(digits);
-    effects["torque_offset_nm"] = toml_edit::value(round(torque, 6));
-    effects["encoder_offset_deg"] = toml_edit::value(round(encoder.to_degrees(), 5));
+    // Six significant digits: the config keeps what the fit resolved, not its noise.
+    let round = |v: f64| -> f64 {
+        if v == 0.0 || !v.is_finite() {
+            return 0.0;
+        }
+        let digits = 5 - v.abs().log10().floor() as i32;
+        (v * 10f64.powi(digits)).round() / 10f64.powi(digits)
+    };
+    for key in LIVE_KEYS {
+        effects.remove(key);
+    }
+    for (key, v) in &fields {
+        effects[*key] = toml_edit::value(round(*v));
+    }
     effects.decor_mut().set_prefix(format!(
-        "# Identified by `rig identify --apply` (held-out RMSE {:.4} → {:.4} N·m); the estimator\n# subtracts these sensor zeros from the joint's samples.\n",
+        "# Identified by `rig identify --apply` (held-out RMSE {:.4} → {:.4} N·m): the estimator\n# takes the sensor zeros off each sample and runs the rest with the joint's model.\n",
         res.before.rmse, res.after.rmse
     ));
     crate::config_edit::write_validated(config, &doc.to_string())?;
+    let written: Vec<String> = fields
+        .iter()
+        .map(|(k, v)| format!("{k} = {}", round(*v)))
+        .collect();
     println!(
-        "applied to joint {joint} in {}: torque_offset_nm = {:.6}, encoder_offset_deg = {:.5}{}",
+        "applied to joint {joint} in {}: {}{}",
         config.display(),
-        round(torque, 6),
-        round(encoder.to_degrees(), 5),
-        if refused.is_empty() {
+        written.join(", "),
+        if live.refused.is_empty() {
             String::new()
         } else {
-            format!("; refused: {}", refused.len())
+            format!("; refused: {}", live.refused.len())
         }
     );
     Ok(())

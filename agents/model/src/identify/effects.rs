@@ -212,7 +212,7 @@ impl Shaped {
                 .map(|(at, side)| {
                     (
                         xs.iter()
-                            .map(|&v| side * (side * v - at).max(0.0))
+                            .map(|&v| crate::live::stop_side(v, at, side))
                             .collect(),
                         Bound::NonNegative,
                     )

@@ -91,12 +91,7 @@ pub fn stop_operator_from(x: &[f64], r: f64, s0: f64) -> Vec<f64> {
         .collect()
 }
 
-/// The dead zone of half-width `r`: sgn x · max(|x| − r, 0). What a spring in series with a
-/// gap of total width 2r sees of the deflection measured across both (no memory: the spring
-/// is unloaded anywhere inside the gap).
-pub fn dead_zone(x: f64, r: f64) -> f64 {
-    (x.abs() - r).max(0.0) * x.signum()
-}
+pub use crate::live::dead_zone;
 
 /// `x` at times `t − delay` by linear interpolation (held at the ends).
 pub fn shifted(t: &[f64], x: &[f64], delay: f64) -> Vec<f64> {

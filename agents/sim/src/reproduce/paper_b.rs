@@ -235,7 +235,10 @@ fn strokes(
     let mut sim = PlanarRigSim::new(robot.clone(), joints, home, sensors, seed, ts)?;
     let models = pivots
         .iter()
-        .map(|_| RestoringTorqueModel::new(curve.clone(), rig_model::hysteresis::AS5048A_COUNT_RAD))
+        .map(|_| {
+            RestoringTorqueModel::new(curve.clone(), rig_model::hysteresis::AS5048A_COUNT_RAD)
+                .into()
+        })
         .collect();
     let mut est = RobotEstimator::new(robot.clone(), models)?;
     let n = (o.stroke_s * o.rate_hz) as usize;
@@ -256,6 +259,7 @@ fn strokes(
         for i in 0..n {
             let s = sim.step(stroke.offset(i as f64 * ts))?;
             let e = est.update(&JointReadings {
+                t_s: i as f64 * ts,
                 motor: &s.motor_rad,
                 deflection: &s.deflection_rad,
                 pivot: &s.pivot_m,
