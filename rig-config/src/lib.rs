@@ -169,6 +169,19 @@ pub struct JointConfig {
     pub limits: Limits,
     /// Effects identified on the joint and applied live by the estimator (`[joint.effects]`).
     pub effects: JointEffects,
+    /// The joint board's torque reference (`[joint.torque_sensor]`), when it has one.
+    pub torque_sensor: Option<TorqueSensorConfig>,
+}
+
+/// A load cell through an HX711 amplifier, read by the encoder bridge (its own channels,
+/// counted from 0 apart from the encoders'): τ = (conversion − `zero_counts`)·`nm_per_count`.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct TorqueSensorConfig {
+    pub channel: u8,
+    /// The conversion at no load (24-bit two's complement).
+    pub zero_counts: i32,
+    /// Torque per count [N·m] (negative when the cell reads the other way round).
+    pub nm_per_count: f64,
 }
 
 /// What `rig identify --apply` wrote into `[joint.effects]`: the sensor zeros the estimator

@@ -70,6 +70,17 @@ pub struct RawJoint {
     pub awas: Option<RawAwas>,
     pub limits: RawLimits,
     pub effects: Option<RawEffects>,
+    pub torque_sensor: Option<RawTorqueSensor>,
+}
+
+/// A torque reference on the joint board: a load cell through an HX711 on the encoder bridge.
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct RawTorqueSensor {
+    pub kind: String,
+    pub channel: Option<u8>,
+    pub zero_counts: Option<i64>,
+    pub nm_per_count: f64,
 }
 
 /// Effects `rig identify --apply` found and the estimator applies live.

@@ -400,6 +400,43 @@ fn live_effects_are_read_in_si_and_each_bad_or_lone_field_is_named() {
 }
 
 #[test]
+fn a_load_cell_is_read_with_its_zero_and_scale_and_every_bad_field_is_named() {
+    let (p, src) = example("bench.toml");
+    let with = |body: &str| format!("{src}\n[joint.torque_sensor]\n{body}");
+    let t = parse(
+        &p,
+        &with("kind = \"hx711\"\nchannel = 2\nzero_counts = -8000\nnm_per_count = 2e-5\n"),
+    )
+    .unwrap()
+    .joints[0]
+        .torque_sensor
+        .unwrap();
+    assert_eq!((t.channel, t.zero_counts, t.nm_per_count), (2, -8000, 2e-5));
+    let errs = parse(
+        &p,
+        &with("kind = \"strain\"\nchannel = 4\nzero_counts = 9000000\nnm_per_count = 0.0\n"),
+    )
+    .expect_err("refused")
+    .0;
+    let fields: Vec<&str> = errs.iter().map(|e| e.field.as_str()).collect();
+    assert_eq!(
+        fields,
+        [
+            "joint[0].torque_sensor.kind",
+            "joint[0].torque_sensor.channel",
+            "joint[0].torque_sensor.zero_counts",
+            "joint[0].torque_sensor.nm_per_count",
+        ],
+        "{errs:?}"
+    );
+    assert!(
+        errs[3].message.contains("known weight"),
+        "{}",
+        errs[3].message
+    );
+}
+
+#[test]
 fn a_watchdog_of_ages_is_refused() {
     let e = errors_after("bench.toml", "watchdog_ms = 500.0", "watchdog_ms = 1e300");
     assert_eq!(e.len(), 1, "{e:?}");

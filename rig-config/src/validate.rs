@@ -443,6 +443,10 @@ fn joint(
     let limits = limits(c, &p.key("limits"), &j.limits, &kind, range)?;
     let lever = matches!(kind, JointKind::Lever { .. });
     let effects = effects(c, &p.key("effects"), j.effects.as_ref(), lever)?;
+    let torque_sensor = match &j.torque_sensor {
+        Some(t) => Some(torque_sensor(c, &p.key("torque_sensor"), t)?),
+        None => None,
+    };
     Some(JointConfig {
         name: j.name.clone(),
         index,
@@ -451,6 +455,50 @@ fn joint(
         kind,
         limits,
         effects,
+        torque_sensor,
+    })
+}
+
+/// `[joint.torque_sensor]`: an HX711 channel of the bridge, its zero within the 24-bit range
+/// and a finite, non-zero scale.
+fn torque_sensor(
+    c: &mut Collector<'_>,
+    p: &FieldPath,
+    t: &RawTorqueSensor,
+) -> Option<TorqueSensorConfig> {
+    let kind = c.one_of(&p.key("kind"), &t.kind, &[("hx711", ())]);
+    let mut ok = kind.is_some();
+    let channel = t.channel.unwrap_or(0);
+    if channel > 3 {
+        c.push(
+            &p.key("channel"),
+            format!("{channel}: the bridge reads load cells 0..3"),
+        );
+        ok = false;
+    }
+    let (lo, hi) = (-(1i64 << 23), (1i64 << 23) - 1);
+    let zero = t.zero_counts.unwrap_or(0);
+    if !(lo..=hi).contains(&zero) {
+        c.push(
+            &p.key("zero_counts"),
+            format!("{zero} is not a 24-bit conversion ({lo}..={hi})"),
+        );
+        ok = false;
+    }
+    if !(t.nm_per_count.is_finite() && t.nm_per_count != 0.0 && t.nm_per_count.abs() < 1.0) {
+        c.push(
+            &p.key("nm_per_count"),
+            format!(
+                "{} is not a load cell's scale: give N·m per count, non-zero and below 1 (hang a known weight on a known arm and divide its torque by the change in counts)",
+                t.nm_per_count
+            ),
+        );
+        ok = false;
+    }
+    ok.then_some(TorqueSensorConfig {
+        channel,
+        zero_counts: zero as i32,
+        nm_per_count: t.nm_per_count,
     })
 }
 

@@ -198,6 +198,110 @@ fn rig_joint_on_virtual_servos_gives_the_sim_backends_force_estimate() {
     );
 }
 
+#[test]
+fn a_load_cell_on_the_bridge_gives_the_bench_its_torque_reference_on_the_hardware_path() {
+    // The bench joint with an HX711 load cell on bridge channel 0 (20 µN·m a count, 12 345
+    // counts at no load): the virtual board turns the simulated torque sensor's reading into
+    // conversions, the dynamixel backend reads them back through the config's zero and scale,
+    // and the estimator's live residual is the simulated sensor's noise (3 mN·m), not zero
+    // (the reference is measured, not the model's own) and not the torque itself.
+    let _one_at_a_time = serial();
+    let dir = common::test_dir("load-cell");
+    let path = dir.join("bench-load-cell.toml");
+    let bench = std::fs::read_to_string(
+        std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../rig-config/examples/bench.toml"),
+    )
+    .unwrap();
+    std::fs::write(
+        &path,
+        format!("{bench}\n[joint.torque_sensor]\nkind = \"hx711\"\nchannel = 0\nzero_counts = 12345\nnm_per_count = 2.0e-5\n"),
+    )
+    .unwrap();
+    let cfg = rig_config::load(&path).unwrap();
+    assert!(cfg.joints[0].torque_sensor.is_some());
+    let vb = VirtualBoard::start(&cfg, &[0], now_ns(), 1).unwrap();
+    let hub = format!("tcp/127.0.0.1:{}", free_port());
+    let cfg_path = path.to_string_lossy().into_owned();
+    let (samples, residuals) = rt().block_on(async {
+        let z = session(&hub).await;
+        let samples = Arc::new(Mutex::new(Vec::<Option<f64>>::new()));
+        let residuals = Arc::new(Mutex::new(Vec::<f64>::new()));
+        let (sm, rs) = (samples.clone(), residuals.clone());
+        let _samples = z
+            .declare_subscriber("rig/bench/joint/j1/sample")
+            .callback(move |x| {
+                if let Ok(m) = decode::<JointSample>(&x.payload().to_bytes()) {
+                    sm.lock().unwrap().push(m.torque_nm);
+                }
+            })
+            .await
+            .unwrap();
+        let _estimates = z
+            .declare_subscriber("rig/bench/estimate/joint/j1")
+            .callback(move |x| {
+                if let Ok(m) = decode::<JointEstimate>(&x.payload().to_bytes())
+                    && let Some(r) = m.residual_nm
+                {
+                    rs.lock().unwrap().push(r);
+                }
+            })
+            .await
+            .unwrap();
+        let _est = spawn(
+            "rig",
+            &s(&["estimator", "--config", &cfg_path, "--connect", &hub]),
+        );
+        common::wait_alive_on(&z, &[common::alive_in("bench", "estimator", "0")]).await;
+        let mut agent = agent_on(&vb, &cfg_path, "j1", &hub);
+        tokio::time::sleep(Duration::from_secs(6)).await;
+        let _ = agent.0.kill();
+        let _ = agent.0.wait();
+        let got = samples.lock().unwrap().clone();
+        let res = residuals.lock().unwrap().clone();
+        (got, res)
+    });
+    assert!(samples.len() > 3000, "{} samples", samples.len());
+    assert!(
+        samples.iter().all(Option::is_some),
+        "every sample carries the load cell's torque"
+    );
+    let peak = samples.iter().flatten().fold(0.0f64, |m, v| m.max(v.abs()));
+    // After the first 2 s (the loop's first loading from rest).
+    let tail = &residuals[residuals.len().min(2000)..];
+    assert!(tail.len() > 1500, "{} residuals", residuals.len());
+    let rms = (tail.iter().map(|r| r * r).sum::<f64>() / tail.len() as f64).sqrt();
+    eprintln!(
+        "load cell: torque peak {peak:.3} N·m, live residual RMS {rms:.4} N·m over {} estimates",
+        tail.len()
+    );
+    assert!(peak > 0.05, "the bench loads the joint: peak {peak} N·m");
+    assert!(
+        (0.002..0.006).contains(&rms),
+        "residual RMS {rms} N·m: the simulated sensor's 3 mN·m of noise"
+    );
+}
+
+/// `rig-joint` serving `joints` of `config` on the virtual board `vb`, joined to `hub`.
+fn agent_on(vb: &VirtualBoard, config: &str, joints: &str, hub: &str) -> common::Proc {
+    spawn(
+        "rig-joint",
+        &s(&[
+            "--config",
+            config,
+            "--joint",
+            joints,
+            "--connect",
+            hub,
+            "--backend",
+            "dynamixel",
+            "--bus",
+            &vb.bus_path.display().to_string(),
+            "--bridge",
+            &vb.bridge_path.display().to_string(),
+        ]),
+    )
+}
+
 fn status_of(m: &JointStatus, joint: u16, state: JointState, text: &str) -> bool {
     m.joint == joint && m.state == state && m.text.contains(text)
 }
@@ -233,23 +337,7 @@ fn commands_watchdog_and_a_bus_fault_leave_the_servos_limp_and_say_why() {
             })
             .await
             .unwrap();
-        let mut agent = spawn(
-            "rig-joint",
-            &s(&[
-                "--config",
-                &path,
-                "--joint",
-                "j1,j2",
-                "--connect",
-                &hub,
-                "--backend",
-                "dynamixel",
-                "--bus",
-                &vb.bus_path.display().to_string(),
-                "--bridge",
-                &vb.bridge_path.display().to_string(),
-            ]),
-        );
+        let mut agent = agent_on(&vb, &path, "j1,j2", &hub);
         let saw = |joint: u16, state: JointState, text: &str| {
             statuses
                 .lock()

@@ -11,6 +11,17 @@
 //! framing error on SPI), bit 1 a magnet out of range (the diagnostics register's COMP
 //! bits). CHECKSUM = !(sum of every reply byte before it), low byte. Asking per tick keeps
 //! the encoder sampled in step with the servos.
+//!
+//! The bench's torque reference, a load cell through an HX711 amplifier on the same bridge:
+//!
+//! ```text
+//! request   A6 | N                                  read load cells 0..N-1
+//! reply     6A | N | (V_0 V_1 V_2 FLAGS) × N | CHECKSUM
+//! ```
+//! V is the HX711's latest 24-bit conversion, two's complement, low byte first; FLAGS bit 0:
+//! a new conversion since the previous reply (the HX711 converts at 10 or 80 Hz: between
+//! conversions the bridge repeats the last), bit 1: no HX711 answering (its data line has not
+//! gone low for 200 ms). The config gives each channel's zero and scale.
 
 use std::time::{Duration, Instant};
 
@@ -22,6 +33,88 @@ pub const REQUEST: u8 = 0xA5;
 pub const REPLY: u8 = 0x5A;
 /// AS5048A counts per revolution.
 pub const COUNTS: u16 = 16384;
+/// Load-cell request and reply markers.
+pub const LOAD_REQUEST: u8 = 0xA6;
+pub const LOAD_REPLY: u8 = 0x6A;
+/// The HX711's range: a 24-bit two's complement conversion.
+pub const LOAD_MIN: i32 = -(1 << 23);
+pub const LOAD_MAX: i32 = (1 << 23) - 1;
+
+/// One load cell's reading.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub struct LoadReading {
+    /// The amplifier's conversion (24 bits, sign-extended).
+    pub raw: i32,
+    /// A new conversion since the previous reply.
+    pub fresh: bool,
+    /// No amplifier answers on this channel.
+    pub missing: bool,
+}
+
+impl LoadReading {
+    /// The conversion that reads `nm` [N·m] with `zero` counts at no load and `nm_per_count`
+    /// (to the nearest count, within the 24-bit range).
+    pub fn raw_at(nm: f64, zero: i32, nm_per_count: f64) -> i32 {
+        let c = (nm / nm_per_count).round() + f64::from(zero);
+        c.clamp(f64::from(LOAD_MIN), f64::from(LOAD_MAX)) as i32
+    }
+
+    /// The torque [N·m] this conversion reads.
+    pub fn nm_from(&self, zero: i32, nm_per_count: f64) -> f64 {
+        f64::from(self.raw - zero) * nm_per_count
+    }
+}
+
+/// The load-cell reply frame for `readings`.
+pub fn encode_load_reply(readings: &[LoadReading]) -> Vec<u8> {
+    let mut out = vec![LOAD_REPLY, readings.len() as u8];
+    for r in readings {
+        out.extend_from_slice(&r.raw.clamp(LOAD_MIN, LOAD_MAX).to_le_bytes()[..3]);
+        out.push(u8::from(r.fresh) | (u8::from(r.missing) << 1));
+    }
+    out.push(checksum(&out));
+    out
+}
+
+/// One channel of a load-cell reply: 3 bytes of value (sign-extended from bit 23) and flags.
+fn parse_load(c: &[u8]) -> LoadReading {
+    LoadReading {
+        raw: i32::from_le_bytes([c[0], c[1], c[2], if c[2] & 0x80 != 0 { 0xFF } else { 0 }]),
+        fresh: c[3] & 1 != 0,
+        missing: c[3] & 2 != 0,
+    }
+}
+
+/// One channel of an encoder reply.
+fn parse_angle(c: &[u8]) -> Reading {
+    Reading {
+        counts: u16::from_le_bytes([c[0], c[1]]) & 0x3FFF,
+        error: c[2] & 1 != 0,
+        magnet: c[2] & 2 != 0,
+    }
+}
+
+/// A request kind: its markers, each channel's bytes and how to read them.
+struct Frame<T> {
+    request: u8,
+    reply: u8,
+    item: usize,
+    parse: fn(&[u8]) -> T,
+}
+
+const ANGLES: Frame<Reading> = Frame {
+    request: REQUEST,
+    reply: REPLY,
+    item: 3,
+    parse: parse_angle,
+};
+
+const LOADS: Frame<LoadReading> = Frame {
+    request: LOAD_REQUEST,
+    reply: LOAD_REPLY,
+    item: 4,
+    parse: parse_load,
+};
 
 /// One encoder's reading.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -85,6 +178,10 @@ pub enum EncoderError {
         index: usize,
         what: &'static str,
     },
+    #[error(
+        "{bridge}: load cell {index} does not answer (its HX711's data line has not gone low for 200 ms: check its wiring and power)"
+    )]
+    LoadCell { bridge: String, index: usize },
     #[error("{bridge}: {source}")]
     Io {
         bridge: String,
@@ -148,28 +245,44 @@ impl EncoderBridge {
 
     /// Reads `n` encoders; a sensor's error or magnet flag is an error naming it.
     pub fn read(&mut self, n: u8) -> Result<Vec<Reading>, EncoderError> {
+        let r = self.exchange(&ANGLES, n)?;
+        for (index, x) in r.iter().enumerate() {
+            let what = if x.error {
+                "an SPI error"
+            } else if x.magnet {
+                "its magnet out of range"
+            } else {
+                continue;
+            };
+            return Err(EncoderError::Sensor {
+                bridge: self.name.clone(),
+                index,
+                what,
+            });
+        }
+        Ok(r)
+    }
+
+    /// Reads `n` load cells; a channel without an amplifier is an error naming it.
+    pub fn read_loads(&mut self, n: u8) -> Result<Vec<LoadReading>, EncoderError> {
+        let r = self.exchange(&LOADS, n)?;
+        if let Some(index) = r.iter().position(|x| x.missing) {
+            return Err(EncoderError::LoadCell {
+                bridge: self.name.clone(),
+                index,
+            });
+        }
+        Ok(r)
+    }
+
+    /// One request of kind `f` for `n` channels, retried on a timeout or a bad reply.
+    fn exchange<T>(&mut self, f: &Frame<T>, n: u8) -> Result<Vec<T>, EncoderError> {
         let attempts = self.retries + 1;
         let mut last = Fail::Timeout;
         for _ in 0..attempts {
-            match self.transfer(n)? {
-                Ok(r) => {
-                    for (index, x) in r.iter().enumerate() {
-                        let what = if x.error {
-                            "an SPI error"
-                        } else if x.magnet {
-                            "its magnet out of range"
-                        } else {
-                            continue;
-                        };
-                        return Err(EncoderError::Sensor {
-                            bridge: self.name.clone(),
-                            index,
-                            what,
-                        });
-                    }
-                    return Ok(r);
-                }
-                Err(f) => last = f,
+            match self.transfer(f, n)? {
+                Ok(r) => return Ok(r),
+                Err(e) => last = e,
             }
         }
         if last == Fail::Checksum {
@@ -186,18 +299,18 @@ impl EncoderBridge {
     }
 
     /// One request; a timeout or a bad reply is an inner error (retried).
-    fn transfer(&mut self, n: u8) -> Result<Result<Vec<Reading>, Fail>, EncoderError> {
+    fn transfer<T>(&mut self, f: &Frame<T>, n: u8) -> Result<Result<Vec<T>, Fail>, EncoderError> {
         let io = |source| EncoderError::Io {
             bridge: self.name.clone(),
             source,
         };
-        crate::line::send(&self.port, &[REQUEST, n]).map_err(io)?;
-        let want = 3 + 3 * usize::from(n);
+        crate::line::send(&self.port, &[f.request, n]).map_err(io)?;
+        let want = 3 + f.item * usize::from(n);
         let mut buf: Vec<u8> = Vec::with_capacity(want);
         let deadline = Instant::now() + self.timeout;
         loop {
             // Skip anything before the reply marker.
-            if let Some(k) = buf.iter().position(|b| *b == REPLY) {
+            if let Some(k) = buf.iter().position(|b| *b == f.reply) {
                 buf.drain(..k);
             } else {
                 buf.clear();
@@ -207,15 +320,7 @@ impl EncoderBridge {
                 if buf[1] != n || checksum(body) != buf[want - 1] {
                     return Ok(Err(Fail::Checksum));
                 }
-                let readings = body[2..]
-                    .chunks(3)
-                    .map(|c| Reading {
-                        counts: u16::from_le_bytes([c[0], c[1]]) & 0x3FFF,
-                        error: c[2] & 1 != 0,
-                        magnet: c[2] & 2 != 0,
-                    })
-                    .collect();
-                return Ok(Ok(readings));
+                return Ok(Ok(body[2..].chunks(f.item).map(f.parse).collect()));
             }
             let in_time =
                 crate::line::receive(&mut self.port, &mut buf, deadline).map_err(|source| {
@@ -243,6 +348,8 @@ pub struct VirtualEncoders {
 #[derive(Debug, Clone, Default, PartialEq)]
 pub struct VirtualState {
     pub readings: Vec<Reading>,
+    /// The load cells' readings (none: a bridge without load cells answers N = 0).
+    pub loads: Vec<LoadReading>,
     /// Replies to drop, and replies to corrupt, from the next one on.
     pub drop_replies: u32,
     pub corrupt_replies: u32,
@@ -258,19 +365,25 @@ impl VirtualEncoders {
         let shared = state.clone();
         let (device, client) = crate::pty::PtyDevice::start(move |buf| {
             let mut replies = Vec::new();
-            while let Some(k) = buf.iter().position(|b| *b == REQUEST) {
+            while let Some(k) = buf.iter().position(|b| *b == REQUEST || *b == LOAD_REQUEST) {
                 if buf.len() < k + 2 {
                     break;
                 }
-                let n = usize::from(buf[k + 1]);
+                let (kind, n) = (buf[k], usize::from(buf[k + 1]));
                 buf.drain(..k + 2);
                 let mut st = shared.lock().unwrap_or_else(|p| p.into_inner());
                 if st.drop_replies > 0 {
                     st.drop_replies -= 1;
                     continue;
                 }
-                let take: Vec<Reading> = st.readings.iter().copied().take(n).collect();
-                let mut reply = encode_reply(&take);
+                let mut reply = if kind == REQUEST {
+                    encode_reply(&st.readings.iter().copied().take(n).collect::<Vec<_>>())
+                } else if n <= st.loads.len() {
+                    // As the firmware: more channels than wired is answered with none.
+                    encode_load_reply(&st.loads[..n])
+                } else {
+                    encode_load_reply(&[])
+                };
                 if st.corrupt_replies > 0 {
                     st.corrupt_replies -= 1;
                     let last = reply.len() - 1;
@@ -360,5 +473,46 @@ mod tests {
         v.state.lock().unwrap().readings[1].magnet = true;
         let e = b.read(3).unwrap_err().to_string();
         assert_eq!(e, "/dev/bridge: encoder 1 reports its magnet out of range");
+    }
+
+    #[test]
+    fn load_cells_read_signed_24_bit_conversions_and_a_silent_amplifier_is_named() {
+        // 0.5 mN·m per count, zero at 1000 counts: ±2 N·m and the ends of the 24-bit range.
+        let (zero, scale) = (1000, 5e-4);
+        let loads: Vec<LoadReading> = [2.0, -2.0, 1e9, -1e9]
+            .iter()
+            .map(|&nm| LoadReading {
+                raw: LoadReading::raw_at(nm, zero, scale),
+                fresh: nm > 0.0,
+                missing: false,
+            })
+            .collect();
+        assert_eq!(
+            loads.iter().map(|l| l.raw).collect::<Vec<_>>(),
+            [5000, -3000, LOAD_MAX, LOAD_MIN]
+        );
+        let (v, port) = VirtualEncoders::start(vec![at(7)]).unwrap();
+        v.state.lock().unwrap().loads = loads.clone();
+        let mut b = EncoderBridge::new(port, "/dev/bridge", Duration::from_millis(30));
+        let r = b.read_loads(4).unwrap();
+        assert_eq!(r, loads, "sign, range and flags survive the frame");
+        assert!((r[0].nm_from(zero, scale) - 2.0).abs() < 1e-12);
+        assert!((r[1].nm_from(zero, scale) + 2.0).abs() < 1e-12);
+        assert_eq!(b.read(1).unwrap()[0].counts, 7, "both kinds on one line");
+        v.state.lock().unwrap().corrupt_replies = 1;
+        assert_eq!(
+            b.read_loads(2).unwrap().len(),
+            2,
+            "a corrupt reply is retried"
+        );
+        v.state.lock().unwrap().loads[1].missing = true;
+        let e = b.read_loads(2).unwrap_err().to_string();
+        assert!(
+            e.starts_with("/dev/bridge: load cell 1 does not answer"),
+            "{e}"
+        );
+        // More channels than wired: answered with none, which times out naming the bridge.
+        let e = b.read_loads(5).unwrap_err().to_string();
+        assert!(e.contains("no reply"), "{e}");
     }
 }

@@ -34,6 +34,11 @@ pub fn bridge_bytes(n: usize) -> usize {
     2 + 3 + 3 * n
 }
 
+/// Bytes of one load-cell exchange with the bridge for `n` channels (request 2, reply 3 + 4·n).
+pub fn load_bytes(n: usize) -> usize {
+    2 + 3 + 4 * n
+}
+
 /// Time [s] on the wire of `bytes` at `baud`.
 pub fn wire_s(bytes: usize, baud: u32) -> f64 {
     bytes as f64 * 10.0 / f64::from(baud.max(1))

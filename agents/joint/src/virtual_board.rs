@@ -8,7 +8,10 @@
 //! uses, at the same world time) every `STEP` and writes what real hardware would show: main
 //! servo present positions (the world's motor angles + `main_zero_deg`), encoder counts
 //! (the deflection from `zero_counts`), pivot servo present positions (the plant's pivot,
-//! which follows the pivot servo's goal at the joint's rate limit while its torque is on).
+//! which follows the pivot servo's goal at the joint's rate limit while its torque is on), and
+//! where the config gives a `[joint.torque_sensor]`, its load cell's conversions (the joint's
+//! torque through the config's zero and scale; fresh every step, where a real HX711 converts
+//! at 10 or 80 Hz).
 
 use std::path::PathBuf;
 use std::sync::Arc;
@@ -17,7 +20,7 @@ use std::thread::JoinHandle;
 use std::time::Duration;
 
 use rig_config::RigConfig;
-use rig_dynamixel::encoder::{Reading as Counts, VirtualEncoders};
+use rig_dynamixel::encoder::{LoadReading, Reading as Counts, VirtualEncoders};
 use rig_dynamixel::models::Model;
 use rig_dynamixel::servos::Servo;
 use rig_dynamixel::virtual_bus::{VirtualBus, VirtualServo};
@@ -38,6 +41,8 @@ struct Joint {
     channel: usize,
     zero_counts: u16,
     map: ServoMap,
+    /// Its load cell on the bridge, when the config gives one.
+    load: Option<rig_config::TorqueSensorConfig>,
 }
 
 /// The virtual board; dropping it stops the plant and the devices.
@@ -101,6 +106,7 @@ impl VirtualBoard {
                 channel: p.channel,
                 zero_counts: p.zero_counts,
                 map,
+                load: p.load,
             });
         }
         let channels = plan
@@ -120,6 +126,22 @@ impl VirtualBoard {
             channels
         ])
         .map_err(io)?;
+        // Load cells at their zero until the plant says otherwise.
+        encoders
+            .state
+            .lock()
+            .unwrap_or_else(|p| p.into_inner())
+            .loads = (0..plan.loads.iter().copied().max().unwrap_or(0))
+            .map(|c| LoadReading {
+                raw: joints
+                    .iter()
+                    .filter_map(|j: &Joint| j.load)
+                    .find(|l| l.channel == c)
+                    .map_or(0, |l| l.zero_counts),
+                fresh: true,
+                missing: false,
+            })
+            .collect();
         let stop = Arc::new(AtomicBool::new(false));
         let thread = {
             let (stop, servos, bridge) = (stop.clone(), bus.servos.clone(), encoders.state.clone());
@@ -181,6 +203,15 @@ fn step(
         }
         if let Some(e) = enc.readings.get_mut(j.channel) {
             e.counts = Counts::counts_at(r.deflection_rad, j.zero_counts);
+        }
+        // The load cell reads the joint's torque: the bench's sensor (with its noise), else
+        // the plant's true torque.
+        if let Some(l) = &j.load
+            && let Some(tau) = r.torque_nm.or(r.truth.map(|t| t.torque_nm))
+            && let Some(cell) = enc.loads.get_mut(usize::from(l.channel))
+        {
+            cell.raw = LoadReading::raw_at(tau, l.zero_counts, l.nm_per_count);
+            cell.fresh = true;
         }
     }
 }

@@ -317,7 +317,7 @@ fn run_rig(
             .start_roles(
                 false,
                 boards,
-                BackendKind::default(),
+                |_| BackendKind::default(),
                 now_ns(),
                 Some(duration),
             )

@@ -119,13 +119,13 @@ impl Hub {
     }
 
     /// Starts the allocator (if `allocator`) and one joint agent per board (the joints each
-    /// serves), all on `backend`, and waits for their tokens. `duration`: how long the
-    /// agents sample (None: until [`Launched::stop`]).
+    /// serves), each on `backend(its joints)`, and waits for their tokens. `duration`: how
+    /// long the agents sample (None: until [`Launched::stop`]).
     pub async fn start_roles(
         self,
         allocator: bool,
         boards: Vec<Vec<String>>,
-        backend: BackendKind,
+        backend: impl Fn(&[String]) -> BackendKind,
         start_ns: u64,
         duration: Option<Duration>,
     ) -> Result<Launched, CliError> {
@@ -155,7 +155,7 @@ impl Hub {
                 net: self.peer.clone(),
                 start_ns,
                 duration,
-                backend: backend.clone(),
+                backend: backend(&names),
             };
             joints.push((names, tokio::spawn(run_joint(o, stopped(rx.clone())))));
         }

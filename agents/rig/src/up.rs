@@ -43,12 +43,20 @@ pub struct Args {
     /// Seed of the simulated sensors
     #[arg(long, default_value_t = 1)]
     seed: u64,
-    /// Undeclared effects of every simulated joint (the config does not know them): a TOML
+    /// Undeclared effects of the simulated joints (the config does not know them): a TOML
     /// file of effect fields (agents/sim/SCENARIOS.md), e.g. `torque_offset_nm = 0.05`. With a
     /// torque sensor (rig-config/examples/bench.toml) the estimator's residual monitor
     /// publishes a diagnosis
     #[arg(long, value_name = "FILE")]
     sim_effects: Option<std::path::PathBuf>,
+    /// The joints that carry --sim-effects (default: every joint), e.g. `--sim-effects-on j1`
+    #[arg(
+        long,
+        value_name = "JOINT",
+        requires = "sim_effects",
+        value_delimiter = ','
+    )]
+    sim_effects_on: Vec<String>,
     #[command(flatten)]
     viz: crate::viz::VizArgs,
 }
@@ -74,6 +82,17 @@ async fn up(cfg: RigConfig, args: &Args) -> Result<(), CliError> {
             .map_err(|e| CliError::Invalid(format!("--sim-effects {e}")))?,
         None => rig_sim::effects::Effects::default(),
     };
+    if let Some(n) = args
+        .sim_effects_on
+        .iter()
+        .find(|n| !cfg.joints.iter().any(|j| &j.name == *n))
+    {
+        let names: Vec<&str> = cfg.joints.iter().map(|j| j.name.as_str()).collect();
+        return Err(CliError::Invalid(format!(
+            "--sim-effects-on {n}: the rig has no such joint (its joints: {})",
+            names.join(", ")
+        )));
+    }
     let viz = match args.viz.sink(&cfg, false)? {
         Some(sink) => Some(crate::viz::VizThread::start(&cfg, &sink)?),
         None => None,
@@ -135,9 +154,15 @@ async fn up(cfg: RigConfig, args: &Args) -> Result<(), CliError> {
         ))
     );
     let boards = cfg.joints.iter().map(|j| vec![j.name.clone()]).collect();
-    let backend = BackendKind::Sim {
+    // A board's joints carry the effects when one of them is named (or none is).
+    let on = &args.sim_effects_on;
+    let backend = |names: &[String]| BackendKind::Sim {
         seed: args.seed,
-        effects,
+        effects: if on.is_empty() || names.iter().any(|n| on.contains(n)) {
+            effects
+        } else {
+            rig_sim::effects::Effects::default()
+        },
     };
     let launched = hub_up
         .start_roles(true, boards, backend, start_ns, None)

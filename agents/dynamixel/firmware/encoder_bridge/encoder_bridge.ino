@@ -5,13 +5,23 @@
 //   request  A5 | N                                  read encoders 0..N-1
 //   reply    5A | N | (ANGLE_L ANGLE_H FLAGS) x N | CHECKSUM
 //
+//   request  A6 | N                                  read load cells 0..N-1
+//   reply    6A | N | (V_0 V_1 V_2 FLAGS) x N | CHECKSUM
+//
 // ANGLE: the AS5048A's 14-bit angle. FLAGS bit 0: the sensor's error flag or a parity error on
 // SPI; bit 1: magnet out of range (diagnostics COMP high or low). CHECKSUM = ~(sum of every
 // reply byte before it), low byte. N above the encoders wired is answered with N = 0, which
 // the host does not accept: it times out naming the bridge (the config's channels are wrong).
 //
+// V: an HX711 load-cell amplifier's latest 24-bit conversion (channel A, gain 128), two's
+// complement, low byte first. FLAGS bit 0: a new conversion since the previous reply (the
+// HX711 converts at 10 Hz, or 80 Hz with its RATE pin high: between conversions the bridge
+// repeats the last); bit 1: no HX711 answering (DOUT not low for 200 ms). The joint board's
+// config gives each channel's zero and scale ([joint.torque_sensor]).
+//
 // Wiring (Arduino MEGA 2560): MISO 50, MOSI 51, SCK 52, chip selects in CS[] below; the
-// AS5048A boards powered at 5 V (their 5 V mode) so the levels match. Not compiled by CI (no
+// AS5048A boards powered at 5 V (their 5 V mode) so the levels match. HX711s: DOUT and PD_SCK
+// pins in HX_DOUT[] and HX_SCK[] below, VCC and VDD at 5 V, RATE high for 80 Hz. Not compiled by CI (no
 // Arduino toolchain there): build with the Arduino IDE or arduino-cli for arduino:avr:mega.
 
 #include <SPI.h>
@@ -38,23 +48,90 @@ uint16_t frame(uint8_t cs, uint16_t command) {
 
 bool parity_ok(uint16_t v) { return __builtin_parity(v) == 0; }
 
+const uint8_t HX_DOUT[] = {22, 24, 26, 28};  // load cells 0..3 = the config's torque_sensor.channel
+const uint8_t HX_SCK[] = {23, 25, 27, 29};
+const uint8_t HX_N = sizeof(HX_DOUT);
+int32_t hx_value[HX_N];
+bool hx_fresh[HX_N];
+uint32_t hx_last_ms[HX_N];  // when each last converted
+
+// Polls every HX711: one that is ready (DOUT low) is read now — 24 bits MSB first, then one
+// more pulse for channel A at gain 128 next time. Never waits for a conversion.
+void poll_hx711() {
+  for (uint8_t i = 0; i < HX_N; i++) {
+    if (digitalRead(HX_DOUT[i]) != LOW) continue;
+    uint32_t v = 0;
+    noInterrupts();  // PD_SCK high for more than 60 us powers the HX711 down
+    for (uint8_t b = 0; b < 24; b++) {
+      digitalWrite(HX_SCK[i], HIGH);
+      delayMicroseconds(1);
+      v = (v << 1) | digitalRead(HX_DOUT[i]);
+      digitalWrite(HX_SCK[i], LOW);
+      delayMicroseconds(1);
+    }
+    digitalWrite(HX_SCK[i], HIGH);
+    delayMicroseconds(1);
+    digitalWrite(HX_SCK[i], LOW);
+    interrupts();
+    if (v & 0x800000) v |= 0xFF000000;  // sign-extend 24 -> 32 bits
+    hx_value[i] = (int32_t)v;
+    hx_fresh[i] = true;
+    hx_last_ms[i] = millis();
+  }
+}
+
+void reply_loads(uint8_t n) {
+  if (n > HX_N) n = 0;
+  uint8_t reply[3 + 4 * HX_N];
+  uint8_t k = 0;
+  reply[k++] = 0x6A;
+  reply[k++] = n;
+  uint32_t now = millis();
+  for (uint8_t i = 0; i < n; i++) {
+    int32_t v = hx_value[i];
+    reply[k++] = v & 0xFF;
+    reply[k++] = (v >> 8) & 0xFF;
+    reply[k++] = (v >> 16) & 0xFF;
+    uint8_t flags = hx_fresh[i] ? 1 : 0;
+    if (now - hx_last_ms[i] > 200) flags |= 2;
+    reply[k++] = flags;
+    hx_fresh[i] = false;
+  }
+  uint8_t sum = 0;
+  for (uint8_t j = 0; j < k; j++) sum += reply[j];
+  reply[k++] = ~sum;
+  Serial.write(reply, k);
+}
+
 void setup() {
   for (uint8_t i = 0; i < MAX_N; i++) {
     pinMode(CS[i], OUTPUT);
     digitalWrite(CS[i], HIGH);
+  }
+  for (uint8_t i = 0; i < HX_N; i++) {
+    pinMode(HX_DOUT[i], INPUT_PULLUP);  // an unwired channel reads high: reported missing
+    pinMode(HX_SCK[i], OUTPUT);
+    digitalWrite(HX_SCK[i], LOW);
+    hx_last_ms[i] = 0;
   }
   SPI.begin();
   Serial.begin(1000000);  // the config's encoder.baud
 }
 
 void loop() {
+  poll_hx711();
   if (Serial.available() < 2) return;
-  if (Serial.peek() != 0xA5) {  // not a request: skip the byte
+  uint8_t kind = Serial.peek();
+  if (kind != 0xA5 && kind != 0xA6) {  // not a request: skip the byte
     Serial.read();
     return;
   }
   Serial.read();
   uint8_t n = Serial.read();
+  if (kind == 0xA6) {
+    reply_loads(n);
+    return;
+  }
   if (n > MAX_N) n = 0;
   uint8_t reply[3 + 3 * MAX_N];
   uint8_t k = 0;

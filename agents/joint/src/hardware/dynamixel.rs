@@ -36,6 +36,8 @@ pub enum HardwareError {
     Encoder(#[from] EncoderError),
     #[error("encoder bridge: channel {channel} missing from its reply")]
     MissingChannel { channel: usize },
+    #[error("encoder bridge: load cell {channel} missing from its reply")]
+    MissingLoadChannel { channel: u8 },
     #[error("encoder bridge: its reading thread failed")]
     BridgeThread,
 }
@@ -95,7 +97,8 @@ struct BusOf {
 #[derive(Debug)]
 pub struct DynamixelBoard {
     buses: Vec<BusOf>,
-    bridges: Vec<(EncoderBridge, u8)>,
+    /// Each bridge with how many encoders and load cells it is asked for.
+    bridges: Vec<(EncoderBridge, u8, u8)>,
     joints: Vec<HwJoint>,
     turn: usize,
 }
@@ -130,10 +133,10 @@ impl DynamixelBoard {
             });
         }
         let mut bridges = Vec::new();
-        for (line, n) in &plan.bridges {
+        for (k, (line, n)) in plan.bridges.iter().enumerate() {
             let b =
                 EncoderBridge::open(std::path::Path::new(&line.path), line.baud, BRIDGE_TIMEOUT)?;
-            bridges.push((b, *n));
+            bridges.push((b, *n, plan.loads.get(k).copied().unwrap_or(0)));
         }
         let mut board = Self {
             buses,
@@ -194,7 +197,14 @@ impl DynamixelBoard {
             let encoders = scope.spawn(move || {
                 bridges
                     .iter_mut()
-                    .map(|(bridge, n)| bridge.read(*n))
+                    .map(|(bridge, n, loads)| {
+                        let angles = bridge.read(*n)?;
+                        let loads = match *loads {
+                            0 => Vec::new(),
+                            m => bridge.read_loads(m)?,
+                        };
+                        Ok::<_, EncoderError>((angles, loads))
+                    })
                     .collect::<Result<Vec<_>, _>>()
             });
             let servos = read_buses(buses, joints, turn);
@@ -207,17 +217,30 @@ impl DynamixelBoard {
         for j in &self.joints {
             // The bridge answered `n` encoders, every channel below `n`: always there (a
             // reading skipped here would shift every later joint's onto the wrong joint).
-            let c = counts
+            let (angles, loads) = counts
                 .get(j.plan.bridge)
-                .and_then(|c| c.get(j.plan.channel))
+                .map(|(a, l)| (a.as_slice(), l.as_slice()))
+                .unwrap_or_default();
+            let c = angles
+                .get(j.plan.channel)
                 .ok_or(HardwareError::MissingChannel {
                     channel: j.plan.channel,
                 })?;
+            // The torque reference: the amplifier's latest conversion (held between them).
+            let torque_nm = match &j.plan.load {
+                Some(t) => {
+                    let l = loads
+                        .get(usize::from(t.channel))
+                        .ok_or(HardwareError::MissingLoadChannel { channel: t.channel })?;
+                    Some(l.nm_from(t.zero_counts, t.nm_per_count))
+                }
+                None => None,
+            };
             out.push(Reading {
                 motor_rad: j.motor_rad,
                 deflection_rad: c.rad_from(j.plan.zero_counts),
                 pivot_m: Some(j.pivot_m),
-                torque_nm: None,
+                torque_nm,
                 stiffness_motor_rad: None,
                 actuator: j.pivot_m,
                 truth: None,
@@ -300,7 +323,7 @@ impl DynamixelBoard {
     /// the servo's Return Delay Time). Protocol-1.0 pivots count once per cycle per bus (they
     /// are read in turn); pivot goal writes, made only while a pivot moves, are left out.
     pub fn wire_per_cycle(&self) -> Vec<WireLoad> {
-        use rig_dynamixel::timing::{bridge_bytes, read1_bytes, sync_read_bytes};
+        use rig_dynamixel::timing::{bridge_bytes, load_bytes, read1_bytes, sync_read_bytes};
         let mut out = Vec::new();
         for b in &self.buses {
             let servos: Vec<Servo> = b
@@ -329,13 +352,14 @@ impl DynamixelBoard {
                 bridge: false,
             });
         }
-        for (bridge, n) in &self.bridges {
+        for (bridge, n, loads) in &self.bridges {
+            let more = usize::from(*loads > 0);
             out.push(WireLoad {
                 line: bridge.name().to_string(),
                 baud: bridge.baud(),
-                bytes: bridge_bytes(usize::from(*n)),
-                replies: 1,
-                transactions: 1,
+                bytes: bridge_bytes(usize::from(*n)) + more * load_bytes(usize::from(*loads)),
+                replies: 1 + more,
+                transactions: 1 + more,
                 bridge: true,
             });
         }

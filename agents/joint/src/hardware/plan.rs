@@ -102,6 +102,8 @@ pub struct PlannedJoint {
     pub d_min: f64,
     pub d_max: f64,
     pub rate: f64,
+    /// The joint's torque reference on its bridge (`[joint.torque_sensor]`), if any.
+    pub load: Option<rig_config::TorqueSensorConfig>,
 }
 
 /// The board: its lines and joints, checked against the config.
@@ -110,6 +112,8 @@ pub struct BoardPlan {
     pub buses: Vec<Line>,
     /// Bridges, each with how many channels it is asked for (the highest channel used + 1).
     pub bridges: Vec<(Line, u8)>,
+    /// Per bridge, how many load-cell channels it is asked for (0: none).
+    pub loads: Vec<u8>,
     pub joints: Vec<PlannedJoint>,
 }
 
@@ -162,6 +166,7 @@ impl BoardPlan {
         let mut buses = Lines::new("bus");
         let mut bridges = Lines::new("bridge");
         let mut channels: Vec<u8> = Vec::new();
+        let mut loads: Vec<u8> = Vec::new();
         let mut joints = Vec::new();
         for &j in js {
             let joint = &cfg.joints[j];
@@ -257,8 +262,13 @@ impl BoardPlan {
             let bus = buses.index(bus_path, s.baud, at("servo.baud"))?;
             let bridge = bridges.index(bridge_path, e.baud, at("encoder.baud"))?;
             channels.resize(channels.len().max(bridge + 1), 0);
+            loads.resize(channels.len(), 0);
             let n = &mut channels[bridge];
             *n = (*n).max(e.channel.saturating_add(1));
+            if let Some(t) = &joint.torque_sensor {
+                let l = &mut loads[bridge];
+                *l = (*l).max(t.channel.saturating_add(1));
+            }
             joints.push(PlannedJoint {
                 index: j,
                 main,
@@ -271,11 +281,13 @@ impl BoardPlan {
                 d_min: vsa.d_min,
                 d_max: vsa.d_max,
                 rate: joint.limits.stiffness_rate,
+                load: joint.torque_sensor,
             });
         }
         Ok(Self {
             buses: buses.list,
             bridges: bridges.list.into_iter().zip(channels).collect(),
+            loads,
             joints,
         })
     }
