@@ -34,6 +34,7 @@ fn every_long_running_command_refuses_a_duration_that_is_not_a_positive_number_o
         ("rig", vec!["virtual-board", "--joint", "j1"]),
         ("rig", vec!["bench", "latency"]),
         ("rig", vec!["bench", "throughput"]),
+        ("rig", vec!["pivot", "--joint", "j1", "--mm", "9"]),
         ("rig-joint", vec!["--config", cfg, "--joint", "j1"]),
     ];
     for (binary, cmd) in &commands {

@@ -813,6 +813,87 @@ fn a_recording_of_the_bench_is_identified_and_its_undeclared_offset_named() {
     );
 }
 
+#[test]
+fn rig_pivot_holds_a_bench_joints_pivot_and_refuses_a_goal_outside_its_travel() {
+    // The bench joint (sim backend) starts mid-travel at 9 mm; `rig pivot` brings it to 4 mm
+    // at the joint's rate limit and holds it there with a heartbeat.
+    let _one_at_a_time = serial();
+    let bench = bench_config().to_string_lossy().into_owned();
+    let o = Command::new(bin("rig"))
+        .args([
+            "pivot",
+            "--config",
+            &bench,
+            "--joint",
+            "j1",
+            "--mm",
+            "30",
+            "--duration",
+            "1",
+        ])
+        .output()
+        .unwrap();
+    assert_eq!(o.status.code(), Some(1));
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(
+        err.contains("--mm 30: outside joint j1's pivot travel 0.00..18.00 mm"),
+        "{err}"
+    );
+    let hub = format!("tcp/127.0.0.1:{}", free_port());
+    let pivots = rt().block_on(async {
+        let z = common::session(&[&hub], &[]).await;
+        let seen = std::sync::Arc::new(std::sync::Mutex::new(Vec::<f64>::new()));
+        let sn = seen.clone();
+        let _samples = z
+            .declare_subscriber("rig/bench/joint/j1/sample")
+            .callback(move |x| {
+                if let Ok(m) = decode::<JointSample>(&x.payload().to_bytes())
+                    && let Some(d) = m.pivot_m
+                {
+                    sn.lock().unwrap().push(d);
+                }
+            })
+            .await
+            .unwrap();
+        let mut joint = spawn(
+            "rig-joint",
+            &s(&["--config", &bench, "--joint", "j1", "--connect", &hub]),
+        );
+        common::wait_alive_on(&z, &[alive_in("bench", "joint", "j1")]).await;
+        let (b, h) = (bench.clone(), hub.clone());
+        let o = tokio::task::spawn_blocking(move || {
+            Command::new(bin("rig"))
+                .args([
+                    "pivot",
+                    "--config",
+                    &b,
+                    "--joint",
+                    "j1",
+                    "--mm",
+                    "4",
+                    "--duration",
+                    "2",
+                ])
+                .args(["--connect", &h])
+                .output()
+        })
+        .await
+        .unwrap()
+        .unwrap();
+        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+        let _ = joint.0.kill();
+        seen.lock().unwrap().clone()
+    });
+    assert!(pivots.len() > 1000, "{} samples", pivots.len());
+    assert!(
+        (pivots[0] - 0.009).abs() < 1e-4,
+        "starts mid-travel: {}",
+        pivots[0]
+    );
+    let last = pivots[pivots.len() - 1];
+    assert!((last - 0.004).abs() < 5e-5, "held at 4 mm: {last}");
+}
+
 /// Records 8 s of the bench with its simulated joint carrying `sim_effects` (a `--sim-effects`
 /// TOML): the test's directory, the recording and the effects file.
 fn record_bench(name: &str, sim_effects: &str) -> (PathBuf, PathBuf, PathBuf) {

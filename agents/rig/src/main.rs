@@ -39,6 +39,7 @@ mod identify_data;
 mod identify_plots;
 mod launch;
 mod machine;
+mod pivot;
 mod progress;
 mod record;
 mod reproduce;
@@ -114,6 +115,12 @@ enum Command {
     /// Close the loop with measured data: fit a declared model, trace its residual to the
     /// effects it lacks, add those that pay off, report the held-out error before and after.
     Identify(identify::Args),
+    /// Hold one lever joint's pivot at a position (a command with torque on, ten times a
+    /// second) until Ctrl-C or --duration, as on the bench while calibrating:
+    ///
+    ///   rig pivot --config bench.toml --joint j1 --mm 9 --connect tcp/192.0.2.10:7447
+    #[command(verbatim_doc_comment)]
+    Pivot(pivot::Args),
     /// Fit a lever joint's restoring-torque table (paper B eq. 7 at each pivot position the
     /// data holds) from bench data with a torque reference; score it against the config's on
     /// held-out data; write it into the config with --write (comments kept) or --out.
@@ -149,6 +156,7 @@ fn main() -> ExitCode {
         Command::Estimator(a) => hosts::estimator(&a),
         Command::Allocator(a) => hosts::allocator(&a),
         Command::Record(a) => record::record(&a),
+        Command::Pivot(a) => pivot::run(&a),
         Command::Replay(a) => record::replay(&a),
         Command::Export(a) => export::run(&a),
         Command::Validate(a) => validate::run(&a),
