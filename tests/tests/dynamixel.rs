@@ -199,7 +199,7 @@ fn rig_joint_on_virtual_servos_gives_the_sim_backends_force_estimate() {
 }
 
 #[test]
-fn a_load_cell_on_the_bridge_gives_the_bench_its_torque_reference_on_the_hardware_path() {
+fn a_load_cell_and_the_motors_current_give_the_bench_its_torque_references_on_the_hardware_path() {
     // The bench joint with an HX711 load cell on bridge channel 0 (20 µN·m a count, 12 345
     // counts at no load): the virtual board turns the simulated torque sensor's reading into
     // conversions, the dynamixel backend reads them back through the config's zero and scale,
@@ -224,14 +224,14 @@ fn a_load_cell_on_the_bridge_gives_the_bench_its_torque_reference_on_the_hardwar
     let cfg_path = path.to_string_lossy().into_owned();
     let (samples, residuals) = rt().block_on(async {
         let z = session(&hub).await;
-        let samples = Arc::new(Mutex::new(Vec::<Option<f64>>::new()));
+        let samples = Arc::new(Mutex::new(Vec::<(Option<f64>, Option<f64>)>::new()));
         let residuals = Arc::new(Mutex::new(Vec::<f64>::new()));
         let (sm, rs) = (samples.clone(), residuals.clone());
         let _samples = z
             .declare_subscriber("rig/bench/joint/j1/sample")
             .callback(move |x| {
                 if let Ok(m) = decode::<JointSample>(&x.payload().to_bytes()) {
-                    sm.lock().unwrap().push(m.torque_nm);
+                    sm.lock().unwrap().push((m.torque_nm, m.motor_torque_nm));
                 }
             })
             .await
@@ -262,10 +262,23 @@ fn a_load_cell_on_the_bridge_gives_the_bench_its_torque_reference_on_the_hardwar
     });
     assert!(samples.len() > 3000, "{} samples", samples.len());
     assert!(
-        samples.iter().all(Option::is_some),
-        "every sample carries the load cell's torque"
+        samples.iter().all(|(t, m)| t.is_some() && m.is_some()),
+        "every sample carries the load cell's torque and the motor's (from its current)"
     );
-    let peak = samples.iter().flatten().fold(0.0f64, |m, v| m.max(v.abs()));
+    let peak = samples
+        .iter()
+        .filter_map(|s| s.0)
+        .fold(0.0f64, |m, v| m.max(v.abs()));
+    // The XH540's current reads the same torque to its count, 2.69 mA × 7.3/4.4 N·m/A
+    // = 4.5 mN·m, within a plant step of the load cell's.
+    let diff = (samples
+        .iter()
+        .filter_map(|(t, m)| Some((t.as_ref()? - m.as_ref()?).powi(2)))
+        .sum::<f64>()
+        / samples.len() as f64)
+        .sqrt();
+    eprintln!("motor torque from current against the load cell: RMS difference {diff:.4} N·m");
+    assert!(diff < 0.004, "{diff} N·m");
     // After the first 2 s (the loop's first loading from rest).
     let tail = &residuals[residuals.len().min(2000)..];
     assert!(tail.len() > 1500, "{} residuals", residuals.len());

@@ -40,6 +40,12 @@ pub struct Model {
     pub torque_enable: Field,
     pub goal_position: Field,
     pub present_position: Field,
+    /// Present current, where the model reports it, with its unit [µA per count] and the
+    /// datasheet's stall torque [mN·m] and stall current [mA] at 12 V (0 where it has none).
+    pub present_current: Option<Field>,
+    pub current_ua_per_count: u32,
+    pub stall_torque_mnm: u32,
+    pub stall_current_ma: u32,
     /// Size of the table (bytes).
     pub table_size: u16,
     /// Position counts per revolution.
@@ -62,6 +68,11 @@ pub const XH540_W150: Model = Model {
     torque_enable: rw(64, 1),
     goal_position: rw(116, 4),
     present_position: ro(132, 4),
+    // e-Manual: Present Current (126), 2.69 mA per count, signed; stall 7.3 N·m at 4.4 A (12 V).
+    present_current: Some(ro(126, 2)),
+    current_ua_per_count: 2690,
+    stall_torque_mnm: 7300,
+    stall_current_ma: 4400,
     table_size: 147,
     counts_per_rev: 4096,
     max_position: 4095,
@@ -80,6 +91,10 @@ pub const AX_12A: Model = Model {
     torque_enable: rw(24, 1),
     goal_position: rw(30, 2),
     present_position: ro(36, 2),
+    present_current: None,
+    current_ua_per_count: 0,
+    stall_torque_mnm: 0,
+    stall_current_ma: 0,
     table_size: 50,
     // 0..1023 over 300°.
     counts_per_rev: 1228,
@@ -101,6 +116,17 @@ pub fn by_name(name: &str) -> Option<&'static Model> {
 }
 
 impl Model {
+    /// Motor torque per count of present current [N·m]: the count's current times the
+    /// datasheet's stall torque over stall current (its performance graph is close to linear;
+    /// the no-load current is not taken off). 0 for a model without a current sensor.
+    pub fn nm_per_current_count(&self) -> f64 {
+        if self.stall_current_ma == 0 {
+            return 0.0;
+        }
+        f64::from(self.current_ua_per_count) * 1e-6 * f64::from(self.stall_torque_mnm)
+            / f64::from(self.stall_current_ma)
+    }
+
     /// Counts to an angle [rad] from the center.
     pub fn to_rad(&self, counts: u32) -> f64 {
         (f64::from(counts) - f64::from(self.center)) * std::f64::consts::TAU

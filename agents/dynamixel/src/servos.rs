@@ -200,12 +200,7 @@ impl ServoBus {
     /// for the protocol-1.0 ones.
     pub fn positions(&mut self, servos: &[Servo]) -> Result<Vec<f64>, BusError> {
         let mut out = vec![f64::NAN; servos.len()];
-        let p2: Vec<(usize, Servo)> = servos
-            .iter()
-            .copied()
-            .enumerate()
-            .filter(|(_, s)| s.model.protocol == 2)
-            .collect();
+        let p2 = protocol2(servos);
         let same_field = p2
             .windows(2)
             .all(|w| w[0].1.model.present_position == w[1].1.model.present_position);
@@ -221,6 +216,13 @@ impl ServoBus {
                 }
             }
         }
+        self.read_missing(servos, &mut out)?;
+        Ok(out)
+    }
+
+    /// Reads alone each servo whose position in `out` is still NaN (a failed sync read names
+    /// the servo that does not answer; protocol-1.0 servos have no sync read).
+    fn read_missing(&mut self, servos: &[Servo], out: &mut [f64]) -> Result<(), BusError> {
         for (k, s) in servos.iter().enumerate() {
             if out[k].is_nan() {
                 out[k] = s
@@ -228,7 +230,47 @@ impl ServoBus {
                     .to_rad(self.read_field(*s, s.model.present_position)?);
             }
         }
-        Ok(out)
+        Ok(())
+    }
+
+    /// Present positions [rad from the center] and, for the servos that report it, the motor
+    /// torque [N·m] from the present current (the model's datasheet torque per ampere), in the
+    /// order given. Protocol-2.0 servos whose current and position sit in one block (the
+    /// XH540's 126..136) are read with one sync read of the block; otherwise, or if that read
+    /// fails, as [`Self::positions`] (torque absent).
+    pub fn positions_and_torques(
+        &mut self,
+        servos: &[Servo],
+    ) -> Result<(Vec<f64>, Vec<Option<f64>>), BusError> {
+        let mut torque = vec![None; servos.len()];
+        let p2 = protocol2(servos);
+        let layout = p2.first().and_then(|(_, s)| current_block(s));
+        if layout.is_none() || p2.iter().any(|(_, s)| current_block(s) != layout) {
+            return Ok((self.positions(servos)?, torque));
+        }
+        let (start, count) = layout.unwrap_or_default();
+        let ids: Vec<u8> = p2.iter().map(|(_, s)| s.id).collect();
+        self.stats.transfers += 1;
+        let r = match self.p2.sync_read(&ids, start, count) {
+            Ok(r)
+                if r.len() == ids.len() && r.iter().all(|x| x.data.len() == usize::from(count)) =>
+            {
+                r
+            }
+            _ => return Ok((self.positions(servos)?, torque)),
+        };
+        let mut out = vec![f64::NAN; servos.len()];
+        for ((k, s), x) in p2.iter().zip(r) {
+            let d = &x.data;
+            let at = usize::from(s.model.present_position.address - start);
+            out[*k] = s
+                .model
+                .to_rad(u32::from_le_bytes([d[at], d[at + 1], d[at + 2], d[at + 3]]));
+            let counts = i16::from_le_bytes([d[0], d[1]]);
+            torque[*k] = Some(f64::from(counts) * s.model.nm_per_current_count());
+        }
+        self.read_missing(servos, &mut out)?;
+        Ok((out, torque))
     }
 
     /// Sets a goal position [rad from the center].
@@ -245,6 +287,24 @@ impl ServoBus {
     pub fn torque(&mut self, s: Servo, on: bool) -> Result<(), BusError> {
         self.write_field(s, s.model.torque_enable, u32::from(on))
     }
+}
+
+/// The protocol-2.0 servos of `servos`, with their indices.
+fn protocol2(servos: &[Servo]) -> Vec<(usize, Servo)> {
+    servos
+        .iter()
+        .copied()
+        .enumerate()
+        .filter(|(_, s)| s.model.protocol == 2)
+        .collect()
+}
+
+/// Where a protocol-2.0 servo's present current and position sit in one block of its table
+/// (current first, a 4-byte position after it): (start, bytes).
+pub fn current_block(s: &Servo) -> Option<(u16, u16)> {
+    let (c, p) = (s.model.present_current?, s.model.present_position);
+    (s.model.protocol == 2 && p.size == 4 && p.address >= c.address + c.size)
+        .then_some((c.address, p.address + p.size - c.address))
 }
 
 #[cfg(test)]

@@ -240,7 +240,7 @@ impl Served {
             deflection_rad: r.deflection_rad,
             pivot_m: r.pivot_m,
             torque_nm: r.torque_nm,
-            motor_torque_nm: None,
+            motor_torque_nm: r.motor_torque_nm,
             stiffness_motor_rad: r.stiffness_motor_rad,
         };
         match encode(&sample) {

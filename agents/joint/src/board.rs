@@ -32,6 +32,8 @@ pub struct Reading {
     pub deflection_rad: f64,
     pub pivot_m: Option<f64>,
     pub torque_nm: Option<f64>,
+    /// The joint motor's torque [N·m], where the servo reports its current.
+    pub motor_torque_nm: Option<f64>,
     pub stiffness_motor_rad: Option<f64>,
     /// Where the stiffness actuator is, in the guard's unit (pivot [m], stiffness motor
     /// [rad]): what the guard checks the next commands against.
@@ -285,6 +287,7 @@ mod tests {
                 deflection_rad: 0.0,
                 pivot_m: None,
                 torque_nm: None,
+                motor_torque_nm: None,
                 stiffness_motor_rad: None,
                 actuator: self.reads as f64,
                 truth: None,

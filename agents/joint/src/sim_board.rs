@@ -144,6 +144,7 @@ impl SimJoint {
                     deflection_rad: quantize(defl, res),
                     pivot_m: Some(plant.pivot.d),
                     torque_nm: None,
+                    motor_torque_nm: None,
                     stiffness_motor_rad: None,
                     actuator: plant.pivot.d,
                     truth: Some(Truth {
@@ -170,6 +171,7 @@ impl SimJoint {
                     deflection_rad: quantize(defl + e.encoder_bias(t), res),
                     pivot_m: Some(plant.pivot.d),
                     torque_nm: Some(sensed + self.noise.gaussian(self.torque_noise_nm)),
+                    motor_torque_nm: None,
                     stiffness_motor_rad: None,
                     actuator: plant.pivot.d,
                     truth: Some(Truth {
@@ -203,6 +205,7 @@ impl SimJoint {
                     deflection_rad: quantize(s.q, res) - quantize(s.theta1, res),
                     pivot_m: None,
                     torque_nm: Some(tau + self.noise.gaussian(0.05)),
+                    motor_torque_nm: None,
                     stiffness_motor_rad: Some(s.theta2),
                     actuator: s.theta2,
                     truth: Some(Truth {

@@ -11,7 +11,8 @@
 //! which follows the pivot servo's goal at the joint's rate limit while its torque is on), and
 //! where the config gives a `[joint.torque_sensor]`, its load cell's conversions (the joint's
 //! torque through the config's zero and scale; fresh every step, where a real HX711 converts
-//! at 10 or 80 Hz).
+//! at 10 or 80 Hz); the main servo's present current is the joint's torque over the model's
+//! torque per ampere.
 
 use std::path::PathBuf;
 use std::sync::Arc;
@@ -189,11 +190,20 @@ fn step(
         let Ok(r) = j.sim.read(t, dt.max(1e-6)) else {
             continue;
         };
+        // The joint's torque: the bench's sensor (with its noise), else the plant's true one.
+        let tau = r.torque_nm.or(r.truth.map(|t| t.torque_nm));
         if let Some(m) = table.get_mut(&j.main.id) {
             m.set(
                 m.model.present_position,
                 counts(j.main.model, j.map.main_servo(r.motor_rad)),
             );
+            // The motor holds the spring: its current is the spring's torque over the model's
+            // torque per ampere (statically; the motor's own inertia and friction left out).
+            if let (Some(f), Some(tau)) = (m.model.present_current, tau) {
+                let per_count = m.model.nm_per_current_count();
+                let c = (tau / per_count).round().clamp(-32768.0, 32767.0) as i16;
+                m.set(f, u32::from(c as u16));
+            }
         }
         if let (Some(p), Some(d)) = (table.get_mut(&j.pivot.id), r.pivot_m) {
             p.set(
@@ -204,10 +214,9 @@ fn step(
         if let Some(e) = enc.readings.get_mut(j.channel) {
             e.counts = Counts::counts_at(r.deflection_rad, j.zero_counts);
         }
-        // The load cell reads the joint's torque: the bench's sensor (with its noise), else
-        // the plant's true torque.
+        // The load cell reads the joint's torque.
         if let Some(l) = &j.load
-            && let Some(tau) = r.torque_nm.or(r.truth.map(|t| t.torque_nm))
+            && let Some(tau) = tau
             && let Some(cell) = enc.loads.get_mut(usize::from(l.channel))
         {
             cell.raw = LoadReading::raw_at(tau, l.zero_counts, l.nm_per_count);

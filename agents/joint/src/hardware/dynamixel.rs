@@ -49,6 +49,8 @@ struct HwJoint {
     /// Last read pivot displacement [m] and main motor angle [rad].
     pivot_m: f64,
     motor_rad: f64,
+    /// The main motor's torque from its present current [N·m], where it reports it.
+    motor_torque: Option<f64>,
     /// The guard's goal, and the ramped goal last written (counts).
     goal_m: f64,
     ramp_m: f64,
@@ -117,6 +119,7 @@ impl DynamixelBoard {
                 plan: p.clone(),
                 pivot_m: 0.0,
                 motor_rad: 0.0,
+                motor_torque: None,
                 goal_m: 0.0,
                 ramp_m: 0.0,
                 written: None,
@@ -241,6 +244,7 @@ impl DynamixelBoard {
                 deflection_rad: c.rad_from(j.plan.zero_counts),
                 pivot_m: Some(j.pivot_m),
                 torque_nm,
+                motor_torque_nm: j.motor_torque,
                 stiffness_motor_rad: None,
                 actuator: j.pivot_m,
                 truth: None,
@@ -340,9 +344,20 @@ impl DynamixelBoard {
                 )
             });
             let reads1 = mains1 + usize::from(pivots1 > 0);
-            let size2 = p2
+            // Current and position in one block where every protocol-2.0 servo has it.
+            let block = p2
                 .first()
-                .map_or(4, |s| usize::from(s.model.present_position.size));
+                .and_then(|s| rig_dynamixel::servos::current_block(s))
+                .filter(|b| {
+                    p2.iter()
+                        .all(|s| rig_dynamixel::servos::current_block(s) == Some(*b))
+                });
+            let size2 = match block {
+                Some((_, count)) => usize::from(count),
+                None => p2
+                    .first()
+                    .map_or(4, |s| usize::from(s.model.present_position.size)),
+            };
             out.push(WireLoad {
                 line: b.bus.name().to_string(),
                 baud: b.bus.baud(),
@@ -477,13 +492,14 @@ fn read_buses(buses: &mut [BusOf], joints: &mut [HwJoint], turn: usize) -> Resul
                 slots.push((k, true));
             }
         }
-        let p = b.bus.positions(&servos)?;
-        for ((k, is_pivot), rad) in slots.into_iter().zip(p) {
+        let (p, torque) = b.bus.positions_and_torques(&servos)?;
+        for (((k, is_pivot), rad), tau) in slots.into_iter().zip(p).zip(torque) {
             let j = &mut joints[k];
             if is_pivot {
                 j.pivot_m = j.plan.map.pivot_m(rad);
             } else {
                 j.motor_rad = j.plan.map.motor_rad(rad);
+                j.motor_torque = tau;
             }
         }
     }
@@ -560,9 +576,10 @@ mod tests {
             // A stroke of 6 mm bends the joints by a few counts to a few degrees.
             assert!(x.deflection_rad.abs() < 0.2, "{}", x.deflection_rad);
         }
-        // One sync read of 4 XH540s and one AX-12A in turn, and the bridge's 4 encoders.
+        // One sync read of 4 XH540s (present current to present position: 10 bytes each) and
+        // one AX-12A in turn, and the bridge's 4 encoders.
         let w = b.wire_per_cycle();
-        assert_eq!(w[0].bytes, sync_read_bytes(4, 4) + read1_bytes(2));
+        assert_eq!(w[0].bytes, sync_read_bytes(4, 10) + read1_bytes(2));
         assert_eq!((w[0].replies, w[0].transactions), (5, 2));
         assert_eq!(w[1].bytes, 2 + 3 + 3 * 4);
         assert!(b.torque_off_everywhere().is_empty());
@@ -594,7 +611,7 @@ mod tests {
         }
         let (_v, mut b) = board(&cfg);
         let w = b.wire_per_cycle();
-        assert_eq!(w[0].bytes, sync_read_bytes(8, 4));
+        assert_eq!(w[0].bytes, sync_read_bytes(8, 10));
         assert_eq!((w[0].replies, w[0].transactions), (8, 1));
         let r = b.read_cycle(1e-3).unwrap();
         assert!(r.iter().all(|x| (x.pivot_m.unwrap() - 0.009).abs() < 1e-4));
