@@ -100,6 +100,17 @@ impl LiveEffects {
     pub fn is_empty(&self) -> bool {
         *self == Self::default()
     }
+
+    /// What the spring sees and carries in a sample whose sensor zeros are off (and whose
+    /// streams are aligned for a lag): the dead-zoned deflection, and the torque less the stop
+    /// and the ripple. The pair a restoring table is fitted to (`rig calibrate`), so that the
+    /// table and these effects together predict what was measured.
+    pub fn spring_side(&self, phi: f64, tau: f64) -> (f64, f64) {
+        let x = dead_zone(phi, self.backlash_half_width_rad);
+        let stop = self.stop.map_or(0.0, |s| s.torque(x));
+        let ripple = self.ripple.map_or(0.0, |r| r.torque(phi));
+        (x, tau - stop - ripple)
+    }
 }
 
 /// A joint's torque estimate and, with a reference, its residual.
@@ -387,6 +398,32 @@ mod tests {
                 "φ {phi}: {out:?} vs {want}"
             );
             assert_eq!(out.residual_nm, None);
+        }
+    }
+
+    #[test]
+    fn the_spring_side_of_a_sample_is_what_the_live_model_adds_its_effects_to() {
+        let effects = LiveEffects {
+            backlash_half_width_rad: 0.004,
+            stop: Some(HardStop {
+                onset_rad: 0.03,
+                rate_nm_per_rad: 6.0,
+                ..HardStop::default()
+            }),
+            ripple: Some(Ripple {
+                amplitude_nm: 0.01,
+                period_rad: 0.02,
+                phase_rad: 0.4,
+            }),
+            ..LiveEffects::default()
+        };
+        let mut live = LiveJoint::new(linear_ish(), effects);
+        for i in 0..=80 {
+            let phi = 0.05 * i as f64 / 80.0;
+            let tau = live.update(i as f64 * 1e-3, phi, 0.0, None).torque_nm;
+            // Taken off again, what is left is the table's own τ = 2·x.
+            let (x, spring) = effects.spring_side(phi, tau);
+            assert!((spring - 2.0 * x).abs() < 1e-12, "φ {phi}");
         }
     }
 

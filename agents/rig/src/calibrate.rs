@@ -5,15 +5,19 @@
 //! The fit is `rig_model::hysteresis::fit_restoring`; the table a config holds is
 //! `[[joint.restoring.point]]` (`d_mm`, `k_nm_per_rad`, `h_nm`, `a_s`, `n`). Pivot positions the
 //! data does not cover keep the config's points, and the report names them: nothing is
-//! extrapolated silently.
+//! extrapolated silently. The joint's `[joint.effects]` stay outside the table: the sensor
+//! zeros are taken off, the deflection delayed by a torque lag and passed through a gap, a
+//! stop's and a ripple's torque taken off, and both tables are scored as the estimator runs
+//! them (`rig_model::live`).
 
 use std::path::{Path, PathBuf};
 
 use rig_config::{JointKind, RigConfig};
 use rig_model::hysteresis::{
-    FitOptions, FitSample, RestoringCurve, RestoringParams, fit_restoring, replay_curve,
+    FitOptions, FitSample, RestoringCurve, RestoringParams, RestoringTorqueModel, fit_restoring,
 };
 use rig_model::identify::Run;
+use rig_model::live::LiveJoint;
 use serde_json::json;
 
 use crate::error::CliError;
@@ -67,8 +71,14 @@ pub struct Args {
     json: bool,
 }
 
-/// One file's samples, in order.
-fn samples(run: &Run, pivot_m: Option<f64>, file: &Path) -> Result<Vec<FitSample>, CliError> {
+/// One file's samples in order, with their times [s] and the config's sensor zeros taken off
+/// (`[joint.effects]`: what the estimator does to each sample before its model sees it).
+fn samples(
+    run: &Run,
+    pivot_m: Option<f64>,
+    file: &Path,
+    zeros: &rig_config::JointEffects,
+) -> Result<Timed, CliError> {
     let phi = run.phi.as_ref().ok_or_else(|| {
         CliError::Invalid(format!(
             "{}: no deflection (phi) column; name it with --columns phi=COLUMN[:deg]",
@@ -85,26 +95,57 @@ fn samples(run: &Run, pivot_m: Option<f64>, file: &Path) -> Result<Vec<FitSample
             )));
         }
     };
-    Ok((0..phi.len())
+    let samples = (0..phi.len())
         .map(|i| FitSample {
-            phi: phi[i],
-            tau: run.tau[i],
+            phi: phi[i] - zeros.encoder_offset_rad,
+            tau: run.tau[i] - zeros.torque_offset_nm,
             d: d[i],
         })
-        .collect())
+        .collect();
+    Ok((run.t.clone(), samples))
 }
 
-/// Torque RMSE [N·m] of `curve` replayed over each run from a virgin state.
-fn rmse(curve: &RestoringCurve, dead_band: f64, runs: &[Vec<FitSample>]) -> f64 {
-    let refs: Vec<&[FitSample]> = runs.iter().map(Vec::as_slice).collect();
-    let predicted = replay_curve(curve, &refs, dead_band);
-    let measured = runs.iter().flatten().map(|s| s.tau);
-    let sq: f64 = predicted
-        .iter()
-        .zip(measured)
-        .map(|(p, m)| (p - m).powi(2))
-        .sum();
-    (sq / predicted.len().max(1) as f64).sqrt()
+/// A run's times [s] and samples.
+type Timed = (Vec<f64>, Vec<FitSample>);
+
+/// What the table must hold of a run, given the live effects the config applies with it: the
+/// deflection delayed by a torque lag, then what the spring sees and carries
+/// ([`rig_model::live::LiveEffects::spring_side`]).
+fn spring_side(run: &Timed, e: &rig_model::live::LiveEffects) -> Vec<FitSample> {
+    let (t, s) = run;
+    let phi: Vec<f64> = s.iter().map(|x| x.phi).collect();
+    let phi = rig_model::identify::signals::shifted(t, &phi, e.torque_lag_s);
+    s.iter()
+        .zip(phi)
+        .map(|(x, phi)| {
+            let (phi, tau) = e.spring_side(phi, x.tau);
+            FitSample { phi, tau, d: x.d }
+        })
+        .collect()
+}
+
+/// Torque RMSE [N·m] of `curve` run live over each run from a virgin state, with the config's
+/// live effects: the residual the estimator would show.
+fn rmse(
+    curve: &RestoringCurve,
+    dead_band: f64,
+    effects: &rig_model::live::LiveEffects,
+    runs: &[Timed],
+) -> f64 {
+    let (mut sq, mut n) = (0.0, 0usize);
+    for (t, s) in runs {
+        let mut m = LiveJoint::new(
+            RestoringTorqueModel::new(curve.clone(), dead_band),
+            *effects,
+        );
+        for (t, x) in t.iter().zip(s) {
+            if let Some(r) = m.update(*t, x.phi, x.d, Some(x.tau)).residual_nm {
+                sq += r * r;
+                n += 1;
+            }
+        }
+    }
+    (sq / n.max(1) as f64).sqrt()
 }
 
 /// The merged table: the fitted points, and the config's points no fitted point is within
@@ -185,18 +226,23 @@ pub fn run(a: &Args) -> Result<(), CliError> {
         None => None,
     };
     let map = ColumnMap::parse(a.data.columns.as_deref())?;
-    let load = |files: &[PathBuf]| -> Result<Vec<Vec<FitSample>>, CliError> {
+    let effects = cfg.joints[j].effects;
+    let load = |files: &[PathBuf]| -> Result<Vec<Timed>, CliError> {
         files
             .iter()
             .map(|f| {
                 let (run, _) = read(f, &map, Some(&a.joint))?;
-                samples(&run, pivot_m, f)
+                samples(&run, pivot_m, f, &effects)
             })
             .collect()
     };
     let fit_runs = load(&a.data.data)?;
     let held_runs = load(&a.data.holdout)?;
-    let all: Vec<FitSample> = fit_runs.iter().flatten().copied().collect();
+    // The table holds what the spring does; the config's live effects stay outside it.
+    let all: Vec<FitSample> = fit_runs
+        .iter()
+        .flat_map(|r| spring_side(r, &effects.live))
+        .collect();
     let opts = FitOptions {
         dead_band: *dead_band_rad,
         ..FitOptions::default()
@@ -213,9 +259,9 @@ pub fn run(a: &Args) -> Result<(), CliError> {
     } else {
         ("the held-out data", &held_runs)
     };
-    let before = rmse(restoring, *dead_band_rad, score_runs);
-    let after = rmse(&curve, *dead_band_rad, score_runs);
-    let scored_samples: usize = score_runs.iter().map(Vec::len).sum();
+    let before = rmse(restoring, *dead_band_rad, &effects.live, score_runs);
+    let after = rmse(&curve, *dead_band_rad, &effects.live, score_runs);
+    let scored_samples: usize = score_runs.iter().map(|r| r.1.len()).sum();
 
     let files = a
         .data
@@ -327,6 +373,63 @@ mod tests {
             a_s: k,
             n: 1.0,
         }
+    }
+
+    #[test]
+    fn the_table_is_fitted_to_what_the_spring_does_beside_the_configs_live_effects() {
+        // A joint whose table is k = 2.5 N·m/rad with a 5 mrad gap and a 15 ms torque lag
+        // applied live: data generated by the live model itself (noise-free), fitted with the
+        // effects taken out, gives back the table's slope, and scored live reproduces the data;
+        // fitted ignoring them, the table bends to hold them.
+        let table = p(2.5);
+        let effects = rig_model::live::LiveEffects {
+            backlash_half_width_rad: 0.005,
+            torque_lag_s: 0.015,
+            ..Default::default()
+        };
+        let curve = RestoringCurve::constant(table);
+        let dead_band = rig_model::hysteresis::AS5048A_COUNT_RAD;
+        let ts = 1e-3;
+        let t: Vec<f64> = (0..20_000).map(|i| i as f64 * ts).collect();
+        let path = rig_sim::world::bench_path(t.len(), ts, 0.06, 3);
+        let mut truth =
+            LiveJoint::new(RestoringTorqueModel::new(curve.clone(), dead_band), effects);
+        let now: Vec<f64> = t
+            .iter()
+            .zip(&path)
+            .map(|(t, phi)| truth.update(*t, *phi, 0.009, None).torque_nm)
+            .collect();
+        // The torque sensor reads 15 ms late.
+        let late = rig_model::identify::signals::shifted(&t, &now, 0.015);
+        let run: Timed = (
+            t.clone(),
+            path.iter()
+                .zip(&late)
+                .map(|(phi, tau)| FitSample {
+                    phi: *phi,
+                    tau: *tau,
+                    d: 0.009,
+                })
+                .collect(),
+        );
+        let opts = FitOptions {
+            dead_band,
+            ..FitOptions::default()
+        };
+        let with = fit_restoring(&spring_side(&run, &effects), &opts).unwrap();
+        let k = with.groups[0].params.k;
+        assert!((k - 2.5).abs() < 0.025, "k {k} for 2.5");
+        let fitted = RestoringCurve::constant(with.groups[0].params);
+        let live = rmse(&fitted, dead_band, &effects, std::slice::from_ref(&run));
+        let none = rig_model::live::LiveEffects::default();
+        let without = fit_restoring(&spring_side(&run, &none), &opts).unwrap();
+        let bent = RestoringCurve::constant(without.groups[0].params);
+        let ignored = rmse(&bent, dead_band, &none, std::slice::from_ref(&run));
+        eprintln!("k {k}; live RMSE {live} N·m with the effects, {ignored} N·m ignoring them");
+        assert!(
+            live < 0.2 * ignored,
+            "live {live} N·m vs {ignored} N·m ignoring the effects"
+        );
     }
 
     #[test]
