@@ -613,54 +613,39 @@ fn effects(
         phase,
         lag,
     ] = fields.map(|(field, v, range, what)| within(c, field, v, range, what));
-    // A field that means nothing without its partner.
-    for (field, given, partner, has_partner) in [
+    // Fields that mean nothing apart: a stop's onset and rate, a ripple's amplitude and
+    // period, each needing the other; a phase needs a period (a period needs no phase).
+    for ((a, va), (b, vb), both_ways) in [
         (
-            "stop_rate_nm_per_rad",
-            e.stop_rate_nm_per_rad.is_some(),
-            "stop_onset_deg",
-            e.stop_onset_deg.is_some(),
+            ("stop_onset_deg", e.stop_onset_deg),
+            ("stop_rate_nm_per_rad", e.stop_rate_nm_per_rad),
+            true,
         ),
         (
-            "stop_onset_deg",
-            e.stop_onset_deg.is_some(),
-            "stop_rate_nm_per_rad",
-            e.stop_rate_nm_per_rad.is_some(),
+            ("stop_onset_negative_deg", e.stop_onset_negative_deg),
+            (
+                "stop_rate_negative_nm_per_rad",
+                e.stop_rate_negative_nm_per_rad,
+            ),
+            true,
         ),
         (
-            "stop_rate_negative_nm_per_rad",
-            e.stop_rate_negative_nm_per_rad.is_some(),
-            "stop_onset_negative_deg",
-            e.stop_onset_negative_deg.is_some(),
+            ("ripple_amplitude_nm", e.ripple_amplitude_nm),
+            ("ripple_period_deg", e.ripple_period_deg),
+            true,
         ),
         (
-            "stop_onset_negative_deg",
-            e.stop_onset_negative_deg.is_some(),
-            "stop_rate_negative_nm_per_rad",
-            e.stop_rate_negative_nm_per_rad.is_some(),
-        ),
-        (
-            "ripple_amplitude_nm",
-            e.ripple_amplitude_nm.is_some(),
-            "ripple_period_deg",
-            e.ripple_period_deg.is_some(),
-        ),
-        (
-            "ripple_phase_deg",
-            e.ripple_phase_deg.is_some(),
-            "ripple_period_deg",
-            e.ripple_period_deg.is_some(),
-        ),
-        (
-            "ripple_period_deg",
-            e.ripple_period_deg.is_some(),
-            "ripple_amplitude_nm",
-            e.ripple_amplitude_nm.is_some(),
+            ("ripple_phase_deg", e.ripple_phase_deg),
+            ("ripple_period_deg", e.ripple_period_deg),
+            false,
         ),
     ] {
-        if given && !has_partner {
-            c.push(&p.key(field), format!("needs `{partner}` beside it"));
-            ok = false;
+        let lone = [(a, va, b, vb), (b, vb, a, va)];
+        for (field, v, partner, w) in &lone[..if both_ways { 2 } else { 1 }] {
+            if v.is_some() && w.is_none() {
+                c.push(&p.key(field), format!("needs `{partner}` beside it"));
+                ok = false;
+            }
         }
     }
     if e.ripple_period_deg.is_some() && period <= 0.0 {

@@ -947,7 +947,7 @@ fn record_bench(name: &str, sim_effects: &str) -> (PathBuf, PathBuf, PathBuf) {
 }
 
 fn bench_config() -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR")).join("../rig-config/examples/bench.toml")
+    common::example("bench")
 }
 
 /// `rig identify --apply` of the recording's joint j1 into `config`'s j1: the JSON report.
@@ -1014,8 +1014,7 @@ fn a_joint_effect_found_on_the_bench_and_applied_to_the_robot_improves_its_force
     // end-effector force estimate, scored against the simulated truth, improves.
     let _one_at_a_time = serial();
     let (dir, mcap, effects) = record_bench("apply-parallel", "backlash_rad = 0.012\n");
-    let parallel =
-        Path::new(env!("CARGO_MANIFEST_DIR")).join("../rig-config/examples/parallel.toml");
+    let parallel = config();
     let applied = dir.join("parallel-applied.toml");
     std::fs::copy(&parallel, &applied).unwrap();
     let v = identify_apply(&mcap, &dir.join("bench-id.json"), &applied);

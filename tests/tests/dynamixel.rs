@@ -208,10 +208,7 @@ fn a_load_cell_and_the_motors_current_give_the_bench_its_torque_references_on_th
     let _one_at_a_time = serial();
     let dir = common::test_dir("load-cell");
     let path = dir.join("bench-load-cell.toml");
-    let bench = std::fs::read_to_string(
-        std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../rig-config/examples/bench.toml"),
-    )
-    .unwrap();
+    let bench = std::fs::read_to_string(common::example("bench")).unwrap();
     std::fs::write(
         &path,
         format!("{bench}\n[joint.torque_sensor]\nkind = \"hx711\"\nchannel = 0\nzero_counts = 12345\nnm_per_count = 2.0e-5\n"),

@@ -244,11 +244,9 @@ impl ServoBus {
     ) -> Result<(Vec<f64>, Vec<Option<f64>>), BusError> {
         let mut torque = vec![None; servos.len()];
         let p2 = protocol2(servos);
-        let layout = p2.first().and_then(|(_, s)| current_block(s));
-        if layout.is_none() || p2.iter().any(|(_, s)| current_block(s) != layout) {
+        let Some((start, count)) = shared_current_block(p2.iter().map(|(_, s)| s)) else {
             return Ok((self.positions(servos)?, torque));
-        }
-        let (start, count) = layout.unwrap_or_default();
+        };
         let ids: Vec<u8> = p2.iter().map(|(_, s)| s.id).collect();
         self.stats.transfers += 1;
         let r = match self.p2.sync_read(&ids, start, count) {
@@ -301,10 +299,19 @@ fn protocol2(servos: &[Servo]) -> Vec<(usize, Servo)> {
 
 /// Where a protocol-2.0 servo's present current and position sit in one block of its table
 /// (current first, a 4-byte position after it): (start, bytes).
-pub fn current_block(s: &Servo) -> Option<(u16, u16)> {
+fn current_block(s: &Servo) -> Option<(u16, u16)> {
     let (c, p) = (s.model.present_current?, s.model.present_position);
     (s.model.protocol == 2 && p.size == 4 && p.address >= c.address + c.size)
         .then_some((c.address, p.address + p.size - c.address))
+}
+
+/// The block of current and position every one of `servos` (protocol 2.0) has at the same
+/// place, which [`ServoBus::positions_and_torques`] reads in one sync read; `None` when one
+/// lacks it or they differ (then positions alone are read), or when there are none.
+pub fn shared_current_block<'a>(servos: impl IntoIterator<Item = &'a Servo>) -> Option<(u16, u16)> {
+    let mut all = servos.into_iter().map(current_block);
+    let first = all.next()??;
+    all.all(|b| b == Some(first)).then_some(first)
 }
 
 #[cfg(test)]

@@ -106,10 +106,17 @@ impl LiveEffects {
     /// and the ripple. The pair a restoring table is fitted to (`rig calibrate`), so that the
     /// table and these effects together predict what was measured.
     pub fn spring_side(&self, phi: f64, tau: f64) -> (f64, f64) {
+        let (x, added) = self.around_spring(phi);
+        (x, tau - added)
+    }
+
+    /// What the spring sees of the deflection `phi` (through the gap), and the torque the
+    /// stop and the ripple add to the spring's there [rad, N·m].
+    pub fn around_spring(&self, phi: f64) -> (f64, f64) {
         let x = dead_zone(phi, self.backlash_half_width_rad);
         let stop = self.stop.map_or(0.0, |s| s.torque(x));
         let ripple = self.ripple.map_or(0.0, |r| r.torque(phi));
-        (x, tau - stop - ripple)
+        (x, stop + ripple)
     }
 }
 
@@ -172,18 +179,11 @@ impl LiveJoint {
                 residual_nm: None,
             };
         }
-        let e = &self.effects;
-        let x = dead_zone(phi, e.backlash_half_width_rad);
-        let mut tau = self.model.update(x, d);
-        if let Some(s) = &e.stop {
-            tau += s.torque(x);
-        }
-        if let Some(r) = &e.ripple {
-            tau += r.torque(phi);
-        }
+        let (x, added) = self.effects.around_spring(phi);
+        let tau = self.model.update(x, d) + added;
         self.last = tau;
         let measured = measured.filter(|m| m.is_finite());
-        let lag = e.torque_lag_s;
+        let lag = self.effects.torque_lag_s;
         let residual = if lag == 0.0 {
             measured.map(|m| m - tau)
         } else if lag > 0.0 {

@@ -2,10 +2,10 @@
 //! it the residual (measured − modelled torque) sample by sample. Over a sliding window it
 //! regresses the residual on what the cheapest effects of the library would add — a constant
 //! (`offset`), the direction of motion (`coulomb_friction`: the loop is off), the deflection
-//! rate (`viscous_friction`; `sensor_delay` when the sign gives energy back), the deflection itself (`stiffness_drift`: the
-//! spring rate moved since the model was fitted) — and reports a diagnosis when those explain
-//! most of the residual: structure has appeared. `rig identify` then does the full job
-//! offline.
+//! rate (`viscous_friction`; `sensor_delay` when its sign gives energy back), the deflection
+//! itself (`stiffness_drift`: the spring rate moved since the model was fitted) — and reports a
+//! diagnosis when those explain most of the residual: structure has appeared. `rig identify`
+//! then does the full job offline.
 
 use crate::identify::Effect;
 use crate::identify::signals::rate_sign;

@@ -213,21 +213,6 @@ pub fn run(a: &Args) -> Result<(), CliError> {
     Ok(())
 }
 
-/// Every key `--apply` owns in `[joint.effects]` (a new identification replaces them all).
-const LIVE_KEYS: [&str; 11] = [
-    "torque_offset_nm",
-    "encoder_offset_deg",
-    "backlash_half_width_deg",
-    "stop_onset_deg",
-    "stop_rate_nm_per_rad",
-    "stop_onset_negative_deg",
-    "stop_rate_negative_nm_per_rad",
-    "ripple_amplitude_nm",
-    "ripple_period_deg",
-    "ripple_phase_deg",
-    "torque_lag_ms",
-];
-
 /// `[joint.effects]` keys and values in lab units, in the order written.
 fn live_fields(a: &rig_model::live::Applied) -> Vec<(&'static str, f64)> {
     let e = &a.effects;
@@ -277,7 +262,18 @@ fn apply(res: &Identified, config: &Path, joint: &str) -> Result<(), CliError> {
     for (e, why) in &live.refused {
         eprintln!("rig identify --apply: refused {}: {why}", e.name());
     }
-    let fields = live_fields(&live);
+    // Six significant digits: the config keeps what the fit resolved, not its noise.
+    let round = |v: f64| -> f64 {
+        if v == 0.0 || !v.is_finite() {
+            return 0.0;
+        }
+        let digits = 5 - v.abs().log10().floor() as i32;
+        (v * 10f64.powi(digits)).round() / 10f64.powi(digits)
+    };
+    let fields: Vec<(&str, f64)> = live_fields(&live)
+        .into_iter()
+        .map(|(k, v)| (k, round(v)))
+        .collect();
     let mut doc = crate::config_edit::open(config)?;
     let t = crate::config_edit::joint(&mut doc, joint)?;
     let effects = t
@@ -290,29 +286,18 @@ fn apply(res: &Identified, config: &Path, joint: &str) -> Result<(), CliError> {
                 config.display()
             ))
         })?;
-    // Six significant digits: the config keeps what the fit resolved, not its noise.
-    let round = |v: f64| -> f64 {
-        if v == 0.0 || !v.is_finite() {
-            return 0.0;
-        }
-        let digits = 5 - v.abs().log10().floor() as i32;
-        (v * 10f64.powi(digits)).round() / 10f64.powi(digits)
-    };
-    for key in LIVE_KEYS {
-        effects.remove(key);
-    }
+    // A new identification replaces the section: every key it may hold is --apply's (the
+    // config refuses any other).
+    effects.clear();
     for (key, v) in &fields {
-        effects[*key] = toml_edit::value(round(*v));
+        effects[*key] = toml_edit::value(*v);
     }
     effects.decor_mut().set_prefix(format!(
         "# Identified by `rig identify --apply` (held-out RMSE {:.4} → {:.4} N·m): the estimator\n# takes the sensor zeros off each sample and runs the rest with the joint's model.\n",
         res.before.rmse, res.after.rmse
     ));
     crate::config_edit::write_validated(config, &doc.to_string())?;
-    let written: Vec<String> = fields
-        .iter()
-        .map(|(k, v)| format!("{k} = {}", round(*v)))
-        .collect();
+    let written: Vec<String> = fields.iter().map(|(k, v)| format!("{k} = {v}")).collect();
     println!(
         "applied to joint {joint} in {}: {}{}",
         config.display(),

@@ -37,14 +37,8 @@ const HEARTBEAT: Duration = Duration::from_millis(100);
 
 pub fn run(a: &Args) -> Result<(), CliError> {
     let cfg = crate::config::load_or_parallel(&a.config)?;
-    let names: Vec<&str> = cfg.joints.iter().map(|j| j.name.as_str()).collect();
-    let Some(joint) = cfg.joints.iter().find(|j| j.name == a.joint) else {
-        return Err(CliError::Invalid(format!(
-            "--joint {}: the rig has no such joint (its joints: {})",
-            a.joint,
-            names.join(", ")
-        )));
-    };
+    let joint = &cfg.joints[rig_joint::board::joint_index(&cfg, &a.joint)
+        .map_err(|e| CliError::Invalid(format!("--joint: {e}")))?];
     let JointKind::Lever { vsa, .. } = &joint.kind else {
         return Err(CliError::Invalid(format!(
             "--joint {}: an AWAS joint has no pivot (its stiffness motor is torque-driven)",

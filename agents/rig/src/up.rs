@@ -82,16 +82,9 @@ async fn up(cfg: RigConfig, args: &Args) -> Result<(), CliError> {
             .map_err(|e| CliError::Invalid(format!("--sim-effects {e}")))?,
         None => rig_sim::effects::Effects::default(),
     };
-    if let Some(n) = args
-        .sim_effects_on
-        .iter()
-        .find(|n| !cfg.joints.iter().any(|j| &j.name == *n))
-    {
-        let names: Vec<&str> = cfg.joints.iter().map(|j| j.name.as_str()).collect();
-        return Err(CliError::Invalid(format!(
-            "--sim-effects-on {n}: the rig has no such joint (its joints: {})",
-            names.join(", ")
-        )));
+    for n in &args.sim_effects_on {
+        rig_joint::board::joint_index(&cfg, n)
+            .map_err(|e| CliError::Invalid(format!("--sim-effects-on: {e}")))?;
     }
     let viz = match args.viz.sink(&cfg, false)? {
         Some(sink) => Some(crate::viz::VizThread::start(&cfg, &sink)?),

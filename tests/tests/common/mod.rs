@@ -95,7 +95,12 @@ pub fn rt() -> tokio::runtime::Runtime {
 
 /// The example parallel robot's config file.
 pub fn config() -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR")).join("../rig-config/examples/parallel.toml")
+    example("parallel")
+}
+
+/// The example config `rig-config/examples/<name>.toml`.
+pub fn example(name: &str) -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join(format!("../rig-config/examples/{name}.toml"))
 }
 
 /// A Zenoh session of the example rig that listens on or connects to these endpoints.

@@ -345,14 +345,7 @@ impl DynamixelBoard {
             });
             let reads1 = mains1 + usize::from(pivots1 > 0);
             // Current and position in one block where every protocol-2.0 servo has it.
-            let block = p2
-                .first()
-                .and_then(|s| rig_dynamixel::servos::current_block(s))
-                .filter(|b| {
-                    p2.iter()
-                        .all(|s| rig_dynamixel::servos::current_block(s) == Some(*b))
-                });
-            let size2 = match block {
+            let size2 = match rig_dynamixel::servos::shared_current_block(p2.iter().copied()) {
                 Some((_, count)) => usize::from(count),
                 None => p2
                     .first()
