@@ -338,7 +338,7 @@ fn a_recording_replays_offline_to_the_same_estimates_and_survives_a_killed_recor
     wait_alive(&rec_at, &recorders[..1]);
     wait_alive(&killed_at, &recorders[1..]);
     let start = now_ns();
-    let joints: Vec<Proc> = ["j1", "j2", "j3", "j4"]
+    let mut joints: Vec<Proc> = ["j1", "j2", "j3", "j4"]
         .iter()
         .map(|j| joint_linked(j, &[&hub, &rec_at, &killed_at], start))
         .collect();
@@ -346,7 +346,12 @@ fn a_recording_replays_offline_to_the_same_estimates_and_survives_a_killed_recor
     rec_killed.0.kill().unwrap(); // SIGKILL: no footer, no final flush
     let _ = rec_killed.0.wait();
     std::thread::sleep(Duration::from_millis(1500));
-    drop(joints); // the joints stop before the recorder does
+    // The joints stop before the recorder does, on Ctrl-C: a killed joint can die between
+    // writing a sample to the estimator's link and to the recorder's, and the replay would
+    // then miss a sample the live estimator used; a clean stop drains both links.
+    for j in &mut joints {
+        common::interrupt_and_wait(j, "a joint agent");
+    }
     std::thread::sleep(Duration::from_millis(300));
     // Ctrl-C ends a recording cleanly (footer and index written).
     common::interrupt_and_wait(&mut rec, "the recorder");
