@@ -151,6 +151,8 @@ pub struct RawLever {
 #[serde(deny_unknown_fields)]
 pub struct RawRestoring {
     pub dead_band_counts: Option<f64>,
+    /// "linear" (paper B's straight envelope lines, the default) or "lever".
+    pub envelope: Option<String>,
     pub point: Vec<RawRestoringPoint>,
 }
 

@@ -46,7 +46,11 @@ fn examples_validate_into_si() {
     };
     assert!((vsa.p - 0.0315).abs() < 1e-15);
     assert!((vsa.alpha_max - 43f64.to_radians()).abs() < 1e-15);
-    assert!((restoring.at(0.018).k - 51.7302).abs() < 1e-9);
+    assert!((restoring.at(0.018).k - 62.2473).abs() < 1e-9);
+    assert_eq!(
+        restoring.envelope(),
+        rig_model::hysteresis::Envelope::Lever(*vsa)
+    );
     assert!((dead_band_rad - 2.0 * std::f64::consts::PI / 16384.0).abs() < 1e-15);
     assert_eq!(cfg.joints[2].limits.k_max, 60.0);
     assert!(cfg.robot().is_some());
@@ -96,6 +100,33 @@ fn negative_length_is_refused() {
     let e = errors_after("serial.toml", "l1_mm = 150.0", "l1_mm = -150.0");
     assert_eq!(e[0].field, "geometry.l1_mm");
     assert!(e[0].message.contains("> 0"), "{}", e[0].message);
+}
+
+#[test]
+fn an_unknown_envelope_shape_is_named_and_the_stiffness_bounds_default_to_the_calibrated_table() {
+    let e = errors_after(
+        "parallel.toml",
+        "envelope = \"lever\"",
+        "envelope = \"cubic\"",
+    );
+    assert_eq!(e[0].field, "joint[0].restoring.envelope");
+    assert!(e[0].message.contains("\"lever\""), "{}", e[0].message);
+    assert_eq!(
+        e[0].line,
+        Some(line_containing("parallel.toml", "envelope = ", 0))
+    );
+    // A bound set by hand may reach the mechanism's end by the lever law (65.3 N·m/rad), not
+    // beyond; left out, it is the calibrated table's end (62.2 N·m/rad).
+    let e = errors_after(
+        "parallel.toml",
+        "k_max_nm_per_rad = 60.0",
+        "k_max_nm_per_rad = 66.0",
+    );
+    assert_eq!(e[0].field, "joint[2].limits.k_max_nm_per_rad");
+    assert!(e[0].message.contains("65.3"), "{}", e[0].message);
+    let (path, src) = example("parallel.toml");
+    let cfg = parse(&path, &src.replacen("k_max_nm_per_rad = 60.0\n", "", 1)).unwrap();
+    assert!((cfg.joints[2].limits.k_max - 62.2473).abs() < 1e-9);
 }
 
 #[test]

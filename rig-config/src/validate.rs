@@ -5,7 +5,7 @@ use std::collections::HashMap;
 use std::path::Path;
 
 use rig_model::awas::{Awas, AwasDynamics};
-use rig_model::hysteresis::{RestoringCurve, RestoringParams};
+use rig_model::hysteresis::{Envelope, RestoringCurve, RestoringParams};
 use rig_model::lever::LeverVsa;
 use rig_model::planar::Elbow;
 
@@ -984,14 +984,29 @@ fn lever(
     if table.len() != r.point.len() {
         return None;
     }
+    let envelope = match r.envelope.as_deref() {
+        None | Some("linear") => Envelope::Linear,
+        Some("lever") => Envelope::Lever(vsa),
+        Some(other) => {
+            c.push(
+                &rp.key("envelope"),
+                format!(
+                    "\"{other}\" is not an envelope shape: \"lever\" (the lines follow the lever's own curve; what `rig calibrate` fits) or \"linear\" (paper B's straight lines)"
+                ),
+            );
+            return None;
+        }
+    };
     let restoring = match RestoringCurve::new(&table) {
-        Ok(curve) => curve,
+        Ok(curve) => curve.with_envelope(envelope),
         Err(e) => {
             c.push(&rp, e.to_string());
             return None;
         }
     };
-    let range = vsa.stiffness_range();
+    // The allocator maps a stiffness to a pivot through the calibrated k(d), so the default
+    // bounds are the calibrated table's over the travel (not the lever law's).
+    let range = (restoring.at(vsa.d_min).k, restoring.at(vsa.d_max).k);
     Some((
         JointKind::Lever {
             vsa,
@@ -1119,9 +1134,19 @@ fn limits(
             return None;
         }
     };
-    let (lo, hi) = range;
-    let k_min = l.k_min_nm_per_rad.unwrap_or(lo);
-    let k_max = l.k_max_nm_per_rad.unwrap_or(hi);
+    // The defaults are `range` (a lever joint's calibrated table over the travel); a bound set
+    // by hand may reach to the mechanism's end by the lever law as well (the allocator keeps
+    // within what the table reaches, so a table still to be calibrated does not block the
+    // config).
+    let k_min = l.k_min_nm_per_rad.unwrap_or(range.0);
+    let k_max = l.k_max_nm_per_rad.unwrap_or(range.1);
+    let (lo, hi) = match kind {
+        JointKind::Lever { vsa, .. } => {
+            let law = vsa.stiffness_range();
+            (range.0.min(law.0), range.1.max(law.1))
+        }
+        JointKind::Awas { .. } => range,
+    };
     let tol = 1e-9 * hi;
     if c.positive(&p.key("k_min_nm_per_rad"), k_min) && k_min < lo - tol {
         c.push(&p.key("k_min_nm_per_rad"), format!("{k_min} N·m/rad is below what the mechanism reaches ({lo:.4} N·m/rad at the end of its travel)"));

@@ -1032,6 +1032,81 @@ fn a_joint_effect_found_on_the_bench_and_applied_to_the_robot_improves_its_force
     assert!(after < 0.8 * before, "before {before} N, after {after} N");
 }
 
+#[test]
+fn the_default_rig_reports_each_joints_stiffness_within_2_percent_and_gets_the_operational_stiffness_it_allocates()
+ {
+    // `rig up` as a new user runs it: the estimator's joint stiffness (the calibrated table's
+    // centre-line slope at the current deflection) against the simulated joint's, the
+    // operational stiffness estimated and true against the allocated target (the allocator
+    // maps through the calibrated k(d)), and the force error — the summary's three figures.
+    let _one_at_a_time = serial();
+    let o = Command::new(bin("rig"))
+        .args(["up", "--duration", "8"])
+        .output()
+        .unwrap();
+    let summary = String::from_utf8_lossy(&o.stdout).into_owned();
+    assert!(
+        o.status.success(),
+        "{summary}{}",
+        String::from_utf8_lossy(&o.stderr)
+    );
+    println!("{summary}");
+    let pct = |v: &str| -> f64 {
+        v.trim_end_matches('%')
+            .trim()
+            .parse()
+            .unwrap_or_else(|_| panic!("{v:?} in\n{summary}"))
+    };
+    for j in ["j1", "j2", "j3", "j4"] {
+        let line = summary
+            .lines()
+            .find(|l| l.starts_with(&format!("{j} ")))
+            .unwrap_or_else(|| panic!("no {j} row in\n{summary}"));
+        // joint, samples, skipped, commands, rejected, residual, "stiffness %", clock.
+        let cols: Vec<&str> = line.split_whitespace().collect();
+        let k_err = pct(cols[6]);
+        assert!(
+            k_err.abs() <= 2.0,
+            "{j}: stiffness {k_err} % off the truth\n{summary}"
+        );
+    }
+    let op = summary
+        .lines()
+        .find(|l| l.starts_with("operational stiffness vs"))
+        .unwrap_or_else(|| panic!("no operational line in\n{summary}"));
+    let est = pct(op
+        .split("estimated ")
+        .nth(1)
+        .unwrap()
+        .split(',')
+        .next()
+        .unwrap());
+    let truth = pct(op.split("true ").nth(1).unwrap());
+    assert!(
+        est.abs() <= 3.0,
+        "estimated operational stiffness {est} % off the target\n{op}"
+    );
+    assert!(
+        truth.abs() <= 3.0,
+        "true operational stiffness {truth} % off the target\n{op}"
+    );
+    let force = summary
+        .lines()
+        .find(|l| l.starts_with("force vs simulated truth"))
+        .unwrap();
+    let of_peak = pct(force
+        .split(" = ")
+        .nth(1)
+        .unwrap()
+        .split(" % ")
+        .next()
+        .unwrap());
+    assert!(
+        of_peak <= 3.0,
+        "force RMSE {of_peak} % of the peak\n{force}"
+    );
+}
+
 /// The end-effector force RMSE [N] after the observers settle, from `rig up`'s summary.
 fn summary_force_rmse(summary: &str) -> f64 {
     let line = summary

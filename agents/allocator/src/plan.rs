@@ -95,8 +95,8 @@ pub fn allocate(cfg: &RigConfig, at_m: (f64, f64), target: Target) -> Result<Pla
             at_m.1 * 1e3
         ))
     })?;
-    let k_min = DVector::from_iterator(cfg.joints.len(), cfg.joints.iter().map(|j| j.limits.k_min));
-    let k_max = DVector::from_iterator(cfg.joints.len(), cfg.joints.iter().map(|j| j.limits.k_max));
+    let k_min = DVector::from_iterator(cfg.joints.len(), cfg.joints.iter().map(|j| reach(j).0));
+    let k_max = DVector::from_iterator(cfg.joints.len(), cfg.joints.iter().map(|j| reach(j).1));
     let problem = AllocationProblem::new(s_matrix(&configuration.g_u_a), k_min, k_max)
         .map_err(|e| PlanError::Unsupported(format!("allocation problem: {e}")))?;
     let range = problem.range();
@@ -115,7 +115,17 @@ pub fn allocate(cfg: &RigConfig, at_m: (f64, f64), target: Target) -> Result<Pla
         .iter()
         .zip(allocation.k.iter())
         .map(|(j, &k)| match &j.kind {
-            JointKind::Lever { vsa, .. } => vsa.pivot_for_stiffness(k).map_err(|e| e.to_string()),
+            // Through the calibrated k(d), the table the estimator reports its stiffness by,
+            // so that what is allocated is what the joint gives (the lever law alone is a few
+            // per cent off a real joint: friction in the loop, the spring's own rate).
+            JointKind::Lever { vsa, restoring, .. } => restoring
+                .pivot_for_stiffness(k, vsa.d_min, vsa.d_max)
+                .ok_or_else(|| {
+                    let (lo, hi) = (restoring.at(vsa.d_min).k, restoring.at(vsa.d_max).k);
+                    format!(
+                        "{k:.4} N·m/rad is outside the calibrated table's range [{lo:.4}, {hi:.4}] N·m/rad over the pivot travel"
+                    )
+                }),
             JointKind::Awas { .. } => Err("an AWAS joint has no pivot".to_string()),
         })
         .collect();
@@ -127,6 +137,26 @@ pub fn allocate(cfg: &RigConfig, at_m: (f64, f64), target: Target) -> Result<Pla
         allocation,
         pivots_m,
     })
+}
+
+/// Joint `j`'s stiffness bounds for allocation: the config's, within what a lever joint's
+/// calibrated table reaches over its travel (the pivot is found through that table).
+fn reach(j: &rig_config::JointConfig) -> (f64, f64) {
+    let (lo, hi) = (j.limits.k_min, j.limits.k_max);
+    match &j.kind {
+        JointKind::Lever { vsa, restoring, .. } => {
+            let (a, b) = (restoring.at(vsa.d_min).k, restoring.at(vsa.d_max).k);
+            let (t_lo, t_hi) = (a.min(b), a.max(b));
+            // A table that misses the bounds altogether leaves them as they are; the pivot
+            // lookup then says which stiffness it cannot reach.
+            if t_lo.max(lo) < t_hi.min(hi) {
+                (t_lo.max(lo), t_hi.min(hi))
+            } else {
+                (lo, hi)
+            }
+        }
+        JointKind::Awas { .. } => (lo, hi),
+    }
 }
 
 /// A target component outside what any joint stiffnesses in their bounds can give is refused

@@ -637,7 +637,7 @@ fn estimate_alone(joint: u16, s: &JointSample, model: &mut JointModel) -> Option
                 seq: s.seq,
                 t_acq_ns: s.t_acq_ns,
                 torque_nm: live.torque_nm,
-                stiffness_nm_per_rad: Some(m.model().curve().at(pivot).k),
+                stiffness_nm_per_rad: Some(m.model().stiffness()),
                 inertia_kg_m2: None,
                 inertia_var: None,
                 damping_nms_per_rad: None,

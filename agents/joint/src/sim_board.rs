@@ -151,7 +151,7 @@ impl SimJoint {
                         deflection_rad: defl,
                         torque_nm: tau,
                         link_rad: link,
-                        stiffness_nm_per_rad: plant.rest_stiffness(),
+                        stiffness_nm_per_rad: plant.stiffness(t),
                     }),
                 })
             }
@@ -178,7 +178,7 @@ impl SimJoint {
                         deflection_rad: defl,
                         torque_nm: tau,
                         link_rad: defl,
-                        stiffness_nm_per_rad: plant.rest_stiffness(),
+                        stiffness_nm_per_rad: plant.stiffness(t),
                     }),
                 })
             }

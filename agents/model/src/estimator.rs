@@ -4,7 +4,7 @@
 //! Per actuated joint, paper B's restoring-torque model turns the measured deflection (and
 //! pivot position) into a torque; the measured joint angles (motor + deflection) give the
 //! configuration by loop closure from the independent joints θ1, θ2; then F = (G_u^A)ᵀ·τ̂ and
-//! K_uu = (G_u^A)ᵀ·diag(k̂)·G_u^A with k̂ the model's envelope slope at each pivot.
+//! K_uu = (G_u^A)ᵀ·diag(k̂)·G_u^A with k̂ the model's stiffness at each joint's state.
 
 use nalgebra::{Matrix2, Vector2};
 use thiserror::Error;
@@ -83,7 +83,8 @@ impl RobotEstimator {
     }
 
     /// Feeds one joint's sample taken at `t_s` [s] to its model: τ̂ (and the residual against
-    /// `measured`, the joint's torque reference, when it has one) and k̂ at the pivot.
+    /// `measured`, the joint's torque reference, when it has one) and k̂ at the current state
+    /// ([`crate::hysteresis::RestoringTorqueModel::stiffness`]: the loop's centre-line slope at φ and d).
     /// Non-finite input leaves the model unchanged (it returns its last estimate).
     pub fn update_joint(
         &mut self,
@@ -95,7 +96,7 @@ impl RobotEstimator {
     ) -> Option<(LiveTorque, f64)> {
         let m = self.joints.get_mut(j)?;
         let out = m.update(t_s, deflection, pivot, measured);
-        Some((out, m.model().curve().at(pivot).k))
+        Some((out, m.model().stiffness()))
     }
 
     /// Combines one aligned set of joint readings and their torques into the end-effector

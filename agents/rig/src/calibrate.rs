@@ -14,7 +14,8 @@ use std::path::{Path, PathBuf};
 
 use rig_config::{JointKind, RigConfig};
 use rig_model::hysteresis::{
-    FitOptions, FitSample, RestoringCurve, RestoringParams, RestoringTorqueModel, fit_restoring,
+    Envelope, FitOptions, FitSample, RestoringCurve, RestoringParams, RestoringTorqueModel,
+    fit_restoring,
 };
 use rig_model::identify::Run;
 use rig_model::live::LiveJoint;
@@ -198,6 +199,10 @@ fn rewrite(
         }
         points.push(t);
     }
+    // The fit's envelope (a value already there keeps its comment).
+    if restoring.get("envelope").and_then(toml_edit::Item::as_str) != Some("lever") {
+        restoring.insert("envelope", toml_edit::value("lever"));
+    }
     restoring.insert("point", toml_edit::Item::ArrayOfTables(points));
     Ok(doc.to_string())
 }
@@ -206,9 +211,9 @@ pub fn run(a: &Args) -> Result<(), CliError> {
     let cfg: RigConfig = rig_config::load(&a.config)?;
     let j = rig_joint::board::joint_index(&cfg, &a.joint)?;
     let JointKind::Lever {
+        vsa,
         restoring,
         dead_band_rad,
-        ..
     } = &cfg.joints[j].kind
     else {
         return Err(CliError::Unsupported(format!(
@@ -243,8 +248,12 @@ pub fn run(a: &Args) -> Result<(), CliError> {
         .iter()
         .flat_map(|r| spring_side(r, &effects.live))
         .collect();
+    // The envelope lines follow the joint's lever (restoring.rs): k is the stiffness at rest
+    // and the rig's reported stiffness the centre line's slope at the current deflection.
+    let envelope = Envelope::Lever(*vsa);
     let opts = FitOptions {
         dead_band: *dead_band_rad,
+        envelope,
         ..FitOptions::default()
     };
     let pb = crate::progress::bar(1, "calibrate: fitting eq. 7 at each pivot position");
@@ -252,8 +261,18 @@ pub fn run(a: &Args) -> Result<(), CliError> {
     pb.finish_and_clear();
     let fitted: Vec<(f64, RestoringParams)> = fit.groups.iter().map(|g| (g.d, g.params)).collect();
     let (table, kept) = merge(&fitted, &restoring.table());
+    if !kept.is_empty() && restoring.envelope() != envelope {
+        eprintln!(
+            "rig calibrate: warning: the table keeps the config's points at {} mm, fitted with paper B's straight envelope lines; their k is a secant of the stroke they were fitted on, not the stiffness at rest: record the joint there too and calibrate again",
+            kept.iter()
+                .map(|d| format!("{:.2}", d * 1e3))
+                .collect::<Vec<_>>()
+                .join(", ")
+        );
+    }
     let curve = RestoringCurve::new(&table)
-        .map_err(|e| CliError::Invalid(format!("the merged table: {e}")))?;
+        .map_err(|e| CliError::Invalid(format!("the merged table: {e}")))?
+        .with_envelope(envelope);
     let (scored_on, score_runs) = if held_runs.is_empty() {
         ("the fit data (no --holdout given)", &fit_runs)
     } else {
@@ -465,6 +484,10 @@ mod tests {
         assert!(out.starts_with(head));
         assert_eq!(out.matches("[[joint.restoring.point]]").count(), 2);
         assert!(out.contains("# new\n[[joint.restoring.point]]\nd_mm = 9.0\nk_nm_per_rad = 2.0"));
+        // A table fitted before the lever envelope gets it with the new points.
+        let linear = text.replace("envelope = \"lever\"", "envelope = \"linear\"");
+        let out = rewrite(&linear, "j1", &[(9.0e-3, p(2.0))], "").unwrap();
+        assert_eq!(out.matches("envelope = \"lever\"").count(), 1, "{out}");
         assert!(
             out.contains("[joint.limits]"),
             "the sections after the table stay"

@@ -173,14 +173,28 @@ fn allocate_json_has_every_key_and_consistent_numbers() {
         .collect();
     let s_kmin: f64 = s[0].iter().zip(&kmin).map(|(a, b)| a * b).sum();
     assert!((s_kmin - f(&min["xx"])).abs() < 1e-9 * s_kmin);
-    // Each pivot gives its joint stiffness by paper B eq. 3: (d_a/(p − d_a))²·k_α.
+    // Each pivot gives its joint stiffness by the joint's calibrated table k(d) (what the
+    // estimator reports), within a few per cent of paper B eq. 3, (d_a/(p − d_a))²·k_α, the
+    // lever law the table's simulated joint has (5 % of its spring is friction).
+    let cfg = rig_config::load(
+        &Path::new(env!("CARGO_MANIFEST_DIR")).join("../../rig-config/examples/parallel.toml"),
+    )
+    .unwrap();
     let pivots: Vec<f64> = v["pivot_mm"].as_array().unwrap().iter().map(f).collect();
-    for (d_mm, kj) in pivots.iter().zip(&k) {
+    for ((d_mm, kj), joint) in pivots.iter().zip(&k).zip(&cfg.joints) {
+        let rig_config::JointKind::Lever { restoring, .. } = &joint.kind else {
+            panic!("the example's joints are lever joints")
+        };
+        let k_table = restoring.at(d_mm * 1e-3).k;
+        assert!(
+            (k_table - kj).abs() < 1e-6 * kj,
+            "pivot {d_mm} mm gives {k_table} by the table, wanted {kj}"
+        );
         let da = 9.6 + d_mm;
         let k_eq3 = (da / (31.5 - da)).powi(2) * 1.3042;
         assert!(
-            (k_eq3 - kj).abs() < 1e-3 * kj,
-            "pivot {d_mm} mm gives {k_eq3}, wanted {kj}"
+            (0.93..1.0).contains(&(kj / k_eq3)),
+            "pivot {d_mm} mm: table {kj}, lever law {k_eq3}"
         );
         assert!((0.0..=18.0).contains(d_mm));
     }

@@ -65,6 +65,8 @@ pub struct LeverJointPlant {
     spring: BoucWen,
     backlash: Backlash,
     prev_phi: Option<f64>,
+    /// The spring-side deflection of the last step [rad].
+    phi_s: f64,
 }
 
 impl LeverJointPlant {
@@ -96,6 +98,7 @@ impl LeverJointPlant {
             spring: BoucWen::new(params, 0.0)?,
             backlash: Backlash::new(effects.backlash_rad),
             prev_phi: None,
+            phi_s: 0.0,
         })
     }
 
@@ -107,6 +110,7 @@ impl LeverJointPlant {
         let phi_dot = self.prev_phi.map_or(0.0, |p| (phi - p) / dt);
         self.prev_phi = Some(phi);
         let phi_s = self.backlash.update(phi);
+        self.phi_s = phi_s;
         let alpha = self.vsa.alpha(phi_s, d);
         let mut tau_alpha = self.spring.update(alpha);
         let excess = alpha.abs() - self.vsa.alpha_max;
@@ -115,6 +119,26 @@ impl LeverJointPlant {
         }
         let scale = self.effects.stiffness_scale(t);
         self.vsa.g(phi_s, d) * tau_alpha * scale + self.effects.friction(phi_dot)
+    }
+
+    /// The joint's stiffness now, at time `t` after the last [`Self::torque`] step [N·m/rad]:
+    /// the slope of its loop's centre line at the current spring-side deflection and pivot —
+    /// what the rig reports and allocates (restoring.rs). Bouc-Wen's branches settle on
+    /// a·k_α·α ± (1 − a)·k_α·z_max, so the centre line is a·k_α·α in spring space, and through
+    /// the lever its slope is a·k_α·(G² + α·G′) (the exact tangent, MODEL.md §1); beyond the
+    /// spring's limit the stop's rate adds; a stiffness drift scales it. The transitions'
+    /// steeper slope after a reversal is the friction sticking (the hysteretic share 1 − a
+    /// in series with a slider), not the spring.
+    pub fn stiffness(&self, t: f64) -> f64 {
+        let (v, d, phi) = (&self.vsa, self.pivot.d, self.phi_s);
+        let (g, dg, alpha) = (v.g(phi, d), v.dg_dphi(phi, d), v.alpha(phi, d));
+        let mut k = self.hysteresis.a * v.k_alpha * (g * g + alpha * dg);
+        let excess = alpha.abs() - v.alpha_max;
+        if excess > 0.0 {
+            let beyond = alpha - v.alpha_max * alpha.signum();
+            k += self.hysteresis.stop_ratio * v.k_alpha * (g * g + beyond * dg);
+        }
+        k * self.effects.stiffness_scale(t)
     }
 
     /// Small-deflection stiffness at the current pivot: G(0)²·k_α (Bouc-Wen starts at slope k).
@@ -129,6 +153,47 @@ mod tests {
 
     fn plant(h: SpringHysteresis, e: Effects) -> LeverJointPlant {
         LeverJointPlant::new(LeverVsa::paper_b(), h, e, 0.009, 0.02).unwrap()
+    }
+
+    #[test]
+    fn the_stiffness_is_the_slope_of_the_loops_centre_line_by_finite_differences() {
+        // Large strokes settle Bouc-Wen on its branches; the centre of the loading and
+        // unloading branches at φ0 ± δ gives the centre line's slope, which `stiffness` states
+        // in closed form at φ0.
+        let d = 0.013;
+        let torque_at = |target: f64, from_above: bool| {
+            let mut p = plant(SpringHysteresis::default(), Effects::default());
+            p.pivot.d = d;
+            p.pivot.goal = d;
+            let (amp, n) = (0.09, 20_000);
+            // Two full cycles, then approach the target from the chosen side.
+            let mut last = 0.0;
+            for i in 0..2 * n {
+                let phi = amp * (std::f64::consts::TAU * i as f64 / n as f64).sin();
+                last = p.torque(phi, 0.0, 1e-4);
+            }
+            let start = if from_above { amp } else { -amp };
+            let steps = 4000;
+            for i in 0..=steps {
+                let phi = start + (target - start) * i as f64 / steps as f64;
+                last = p.torque(phi, 0.0, 1e-4);
+            }
+            (last, p.stiffness(0.0))
+        };
+        for phi0 in [0.0, 0.02, 0.035] {
+            let h = 2e-3;
+            let centre = |x: f64| 0.5 * (torque_at(x, false).0 + torque_at(x, true).0);
+            let fd = (centre(phi0 + h) - centre(phi0 - h)) / (2.0 * h);
+            let k = torque_at(phi0, false).1;
+            assert!(
+                (k - fd).abs() < 0.01 * fd,
+                "phi0 {phi0}: stiffness {k}, centre slope {fd}"
+            );
+        }
+        // At rest the centre line is the elastic share a of the lever law's rest stiffness.
+        let vsa = LeverVsa::paper_b();
+        let (_, k0) = torque_at(0.0, false);
+        assert!((k0 - 0.95 * vsa.stiffness_exact(0.0, d)).abs() < 1e-2 * k0);
     }
 
     #[test]

@@ -2,8 +2,8 @@
 //!
 //! 1. The samples are cut into runs of constant pivot position (within a tolerance) and runs
 //!    at the same position are grouped.
-//! 2. Per group, (k, h) start from a linear least-squares fit of τ = k·φ + s·h, with s the
-//!    direction from the reversal detector; (A_s, n) start from the best of a small grid.
+//! 2. Per group, (k, h) start from a linear least-squares fit of τ = k·s(φ) + σ·h, with σ the
+//!    direction from the reversal detector and s the envelope's shape ([`Envelope`]); (A_s, n) start from the best of a small grid.
 //! 3. Levenberg–Marquardt then fits all four parameters (in log space, so they stay positive)
 //!    to the model *replayed over the whole path* — the model is path-dependent, so this is
 //!    the only honest residual.
@@ -13,7 +13,9 @@ use levenberg_marquardt::{LeastSquaresProblem, LevenbergMarquardt};
 use nalgebra::{DMatrix, DVector, Dyn, Owned};
 use thiserror::Error;
 
-use super::restoring::{RestoringCurve, RestoringParams, RestoringTorqueModel, ReversalDetector};
+use super::restoring::{
+    Envelope, RestoringCurve, RestoringParams, RestoringTorqueModel, ReversalDetector,
+};
 use crate::pchip::InterpError;
 
 /// One measured sample.
@@ -38,6 +40,8 @@ pub struct FitOptions {
     pub min_samples: usize,
     /// Cap on model replays inside Levenberg–Marquardt.
     pub max_evaluations: usize,
+    /// The shape of the envelope lines (a lever joint's: [`Envelope::Lever`]).
+    pub envelope: Envelope,
 }
 
 impl Default for FitOptions {
@@ -47,6 +51,7 @@ impl Default for FitOptions {
             d_tolerance: 1e-4,
             min_samples: 20,
             max_evaluations: 400,
+            envelope: Envelope::Linear,
         }
     }
 }
@@ -98,8 +103,17 @@ pub struct RestoringFit {
 }
 
 /// Replays the model with fixed parameters over runs, each from a virgin state.
-pub fn replay(params: RestoringParams, runs: &[&[FitSample]], dead_band: f64) -> Vec<f64> {
-    replay_curve(&RestoringCurve::constant(params), runs, dead_band)
+pub fn replay(
+    params: RestoringParams,
+    envelope: Envelope,
+    runs: &[&[FitSample]],
+    dead_band: f64,
+) -> Vec<f64> {
+    replay_curve(
+        &RestoringCurve::constant(params).with_envelope(envelope),
+        runs,
+        dead_band,
+    )
 }
 
 /// Replays the model with a parameter curve over runs, each from a virgin state: the torque
@@ -131,7 +145,7 @@ pub fn fit_restoring(samples: &[FitSample], opts: &FitOptions) -> Result<Restori
     groups.sort_by(|a, b| a.d.total_cmp(&b.d));
     let table: Vec<(f64, RestoringParams)> = groups.iter().map(|g| (g.d, g.params)).collect();
     Ok(RestoringFit {
-        curve: RestoringCurve::new(&table)?,
+        curve: RestoringCurve::new(&table)?.with_envelope(opts.envelope),
         groups,
     })
 }
@@ -184,10 +198,11 @@ fn fit_group(runs: &[&[FitSample]], opts: &FitOptions) -> Result<GroupFit, FitEr
             if dir == 0.0 {
                 continue;
             }
-            sxx += s.phi * s.phi;
-            sxs += s.phi * dir;
+            let x = opts.envelope.s(s.phi, s.d);
+            sxx += x * x;
+            sxs += x * dir;
             sss += dir * dir;
-            sxt += s.phi * s.tau;
+            sxt += x * s.tau;
             sst += dir * s.tau;
         }
     }
@@ -210,6 +225,7 @@ fn fit_group(runs: &[&[FitSample]], opts: &FitOptions) -> Result<GroupFit, FitEr
     let mut problem = GroupProblem {
         runs: runs.to_vec(),
         dead_band: opts.dead_band,
+        envelope: opts.envelope,
         tau,
         theta: DVector::zeros(4),
     };
@@ -239,7 +255,7 @@ fn fit_group(runs: &[&[FitSample]], opts: &FitOptions) -> Result<GroupFit, FitEr
         problem.set_params(&best.1);
     }
     let params = params_of(&problem.theta);
-    let pred = replay(params, runs, opts.dead_band);
+    let pred = replay(params, opts.envelope, runs, opts.dead_band);
     let (mut abs, mut sq) = (0.0, 0.0);
     for (p, s) in pred.iter().zip(all()) {
         let e = p - s.tau;
@@ -269,6 +285,7 @@ fn params_of(theta: &DVector<f64>) -> RestoringParams {
 struct GroupProblem<'a> {
     runs: Vec<&'a [FitSample]>,
     dead_band: f64,
+    envelope: Envelope,
     tau: DVector<f64>,
     theta: DVector<f64>,
 }
@@ -278,7 +295,7 @@ impl GroupProblem<'_> {
         if theta.iter().any(|v| !v.is_finite() || v.abs() > 50.0) {
             return None;
         }
-        let pred = replay(params_of(theta), &self.runs, self.dead_band);
+        let pred = replay(params_of(theta), self.envelope, &self.runs, self.dead_band);
         let r = DVector::from_vec(pred) - &self.tau;
         r.iter().all(|v| v.is_finite()).then_some(r)
     }
@@ -412,6 +429,53 @@ mod tests {
         // The curve passes through the fitted nodes.
         let mid = fit.curve.at(0.009);
         assert!((mid.k - truth(0.009).k).abs() < 1e-3 * truth(0.009).k);
+    }
+
+    #[test]
+    fn a_lever_envelope_comes_back_with_k_the_stiffness_at_rest_where_a_line_gives_a_secant() {
+        // Data the lever-shaped model made at the stiff end of the travel, 0.06 rad strokes:
+        // the lever fit returns its k; paper B's straight lines return a secant well below it.
+        let vsa = crate::lever::LeverVsa::paper_b();
+        let envelope = Envelope::Lever(vsa);
+        let d = 0.016;
+        let t = RestoringParams {
+            k: vsa.stiffness_at_rest(d),
+            h: 0.05,
+            a_s: 40.0,
+            n: 0.6,
+        };
+        let mut m = RestoringTorqueModel::new(
+            RestoringCurve::constant(t).with_envelope(envelope),
+            AS5048A_COUNT_RAD,
+        );
+        let data: Vec<FitSample> = path(4000, 0.06)
+            .into_iter()
+            .map(|phi| FitSample {
+                phi,
+                tau: m.update(phi, d),
+                d,
+            })
+            .collect();
+        let lever = FitOptions {
+            envelope,
+            ..FitOptions::default()
+        };
+        let g = fit_restoring(&data, &lever).unwrap().groups[0];
+        assert!(
+            (g.params.k - t.k).abs() < 1e-3 * t.k,
+            "{} for {}",
+            g.params.k,
+            t.k
+        );
+        assert!(g.rmse < 1e-3 * g.peak, "rmse {} of {}", g.rmse, g.peak);
+        let line = fit_restoring(&data, &FitOptions::default()).unwrap().groups[0];
+        assert!(
+            line.params.k < 0.95 * t.k,
+            "secant {} for {}",
+            line.params.k,
+            t.k
+        );
+        assert!(line.rmse > 10.0 * g.rmse);
     }
 
     #[test]

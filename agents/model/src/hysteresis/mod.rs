@@ -13,6 +13,6 @@ pub use fit::{
     FitError, FitOptions, FitSample, GroupFit, RestoringFit, fit_restoring, replay_curve,
 };
 pub use restoring::{
-    AS5048A_COUNT_RAD, RestoringCurve, RestoringParams, RestoringTorqueModel, Reversal,
+    AS5048A_COUNT_RAD, Envelope, RestoringCurve, RestoringParams, RestoringTorqueModel, Reversal,
     ReversalDetector, Segment,
 };

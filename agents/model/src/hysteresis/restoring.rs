@@ -15,8 +15,49 @@
 //! Direction comes from deflection increments with a dead band (at least one encoder count),
 //! never from a differentiated velocity. The four parameters (k, h, A_s, n) depend on the
 //! pivot position d through a [`RestoringCurve`].
+//!
+//! **The envelope's shape.** Paper B draws the envelopes as straight lines, `k·φ ± h`. A lever
+//! joint's spring torque is not straight in φ: τ = G(φ)·k_α·α(φ) bends (MODEL.md §1), and at
+//! the stiff end of the travel its slope at 0.05 rad is half its slope at rest. A line fitted
+//! over a bench stroke then reports a secant, not the joint's stiffness. With
+//! [`Envelope::Lever`] the lines follow the lever's own curve, `k·s(φ, d) ± h` with
+//! `s = τ_lever(φ, d) / k_lever(0, d)` (unit slope at rest): k is then the stiffness at zero
+//! deflection and [`RestoringTorqueModel::stiffness`] the slope of the loop's centre line at
+//! the current deflection, `k·s′(φ, d)`. Only the lever's geometry (p, d0) enters s; the
+//! magnitude stays the calibrated k(d).
 
+use crate::lever::LeverVsa;
 use crate::pchip::{InterpError, Pchip};
+
+/// The shape of the envelope lines: `τ = k·s(φ, d) ± h`.
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub enum Envelope {
+    /// Paper B's straight lines, s(φ) = φ.
+    #[default]
+    Linear,
+    /// The lever's static curve, s(φ, d) = G(φ, d)·α(φ, d) / G(0, d)² (MODEL.md §1).
+    Lever(LeverVsa),
+}
+
+impl Envelope {
+    /// s(φ, d): the envelope's centre line per unit of k.
+    #[inline]
+    pub fn s(&self, phi: f64, d: f64) -> f64 {
+        match self {
+            Self::Linear => phi,
+            Self::Lever(v) => v.torque(phi, d) / v.stiffness_at_rest(d),
+        }
+    }
+
+    /// ds/dφ: the centre line's slope per unit of k (1 at φ = 0 for both shapes).
+    #[inline]
+    pub fn slope(&self, phi: f64, d: f64) -> f64 {
+        match self {
+            Self::Linear => 1.0,
+            Self::Lever(v) => v.stiffness_exact(phi, d) / v.stiffness_at_rest(d),
+        }
+    }
+}
 
 /// AS5048A, 14 bit: one count is 2π/16384 rad.
 pub const AS5048A_COUNT_RAD: f64 = 2.0 * std::f64::consts::PI / 16384.0;
@@ -24,7 +65,8 @@ pub const AS5048A_COUNT_RAD: f64 = 2.0 * std::f64::consts::PI / 16384.0;
 /// The restoring-torque parameters at one pivot position.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct RestoringParams {
-    /// Slope of both envelope lines [N·m/rad].
+    /// Slope of both envelope lines at zero deflection [N·m/rad]: the joint's stiffness at
+    /// rest (with [`Envelope::Linear`], everywhere).
     pub k: f64,
     /// Half the gap between the loading and unloading lines [N·m].
     pub h: f64,
@@ -58,6 +100,7 @@ pub struct RestoringCurve {
     h: Pchip,
     ln_a_s: Pchip,
     n: Pchip,
+    envelope: Envelope,
 }
 
 impl RestoringCurve {
@@ -71,7 +114,20 @@ impl RestoringCurve {
             h: Pchip::new(d.clone(), col(|p| p.h))?,
             ln_a_s: Pchip::new(d.clone(), col(|p| p.a_s.ln()))?,
             n: Pchip::new(d, col(|p| p.n))?,
+            envelope: Envelope::Linear,
         })
+    }
+
+    /// The same curve with envelope lines of shape `envelope`.
+    #[must_use]
+    pub fn with_envelope(mut self, envelope: Envelope) -> Self {
+        self.envelope = envelope;
+        self
+    }
+
+    /// The shape of the envelope lines.
+    pub fn envelope(&self) -> Envelope {
+        self.envelope
     }
 
     /// One set of parameters for every pivot position.
@@ -90,7 +146,7 @@ impl RestoringCurve {
         }
     }
 
-    /// The pivot position in [d_lo, d_hi] where the envelope slope k(d) equals `k`, by
+    /// The pivot position in [d_lo, d_hi] where the stiffness at rest k(d) equals `k`, by
     /// bisection (k(d) must be monotone there, as a calibrated VSA's is). `None` outside.
     pub fn pivot_for_stiffness(&self, k: f64, d_lo: f64, d_hi: f64) -> Option<f64> {
         let (k_lo, k_hi) = (self.at(d_lo).k, self.at(d_hi).k);
@@ -230,6 +286,8 @@ pub struct RestoringTorqueModel {
     tau: f64,
     /// The parameters at the last pivot position seen.
     params_at: Option<(f64, RestoringParams)>,
+    /// The last deflection fed [rad].
+    phi: f64,
 }
 
 impl RestoringTorqueModel {
@@ -244,6 +302,7 @@ impl RestoringTorqueModel {
             tau_at_extreme: 0.0,
             tau: 0.0,
             params_at: None,
+            phi: 0.0,
         }
     }
 
@@ -280,6 +339,17 @@ impl RestoringTorqueModel {
         self.tau
     }
 
+    /// The joint's stiffness at the current state [N·m/rad]: the slope of the loop's centre
+    /// line (midway between the envelopes) at the last deflection and pivot fed, k(d)·s′(φ, d).
+    /// The transitions' steeper slope after a reversal is the friction sticking, not the
+    /// spring, so it is not counted. Before the first sample: k at the first table node.
+    pub fn stiffness(&self) -> f64 {
+        match self.params_at {
+            Some((d, p)) => p.k * self.curve.envelope.slope(self.phi, d),
+            None => self.curve.at(self.curve.ln_k.nodes()[0]).k,
+        }
+    }
+
     /// Feeds a deflection `phi` [rad] at pivot position `d` [m]; returns the torque [N·m].
     /// Non-finite input leaves the state as it was and returns the last estimate.
     pub fn update(&mut self, phi: f64, d: f64) -> f64 {
@@ -296,11 +366,12 @@ impl RestoringTorqueModel {
                 p
             }
         };
+        self.phi = phi;
         let Some(det) = self.detector.as_mut() else {
             // Virgin state: start on the centre line between the envelopes.
             self.detector = Some(ReversalDetector::new(self.dead_band, phi));
             self.segment = Segment::Transition;
-            self.vertex = (phi, p.k * phi);
+            self.vertex = (phi, p.k * self.curve.envelope.s(phi, d));
             self.tau = self.vertex.1;
             self.tau_at_extreme = self.tau;
             return self.tau;
@@ -311,20 +382,23 @@ impl RestoringTorqueModel {
             self.segment = Segment::Transition;
         }
         let direction = det.direction();
-        self.tau = self.evaluate(phi, direction, &p);
+        let centre = p.k * self.curve.envelope.s(phi, d);
+        self.tau = self.evaluate(phi, centre, direction, &p);
         if new_extreme {
             self.tau_at_extreme = self.tau;
         }
         self.tau
     }
 
-    fn evaluate(&mut self, phi: f64, direction: i8, p: &RestoringParams) -> f64 {
-        let (a, b) = self.vertex;
+    /// The torque at `phi`, given the centre line's torque there, `centre` = k·s(φ, d).
+    fn evaluate(&mut self, phi: f64, centre: f64, direction: i8, p: &RestoringParams) -> f64 {
         if direction == 0 {
-            return b + p.k * (phi - a);
+            // Inside the first dead band: on the centre line, where the virgin state started.
+            return centre;
         }
+        let (a, b) = self.vertex;
         let s = f64::from(direction);
-        let line = p.k * phi + s * p.h;
+        let line = centre + s * p.h;
         match self.segment {
             Segment::Line => line,
             Segment::Transition => {
@@ -492,6 +566,48 @@ mod tests {
         assert!((d - 0.009).abs() < 1e-12);
         assert!(c.pivot_for_stiffness(70.0, 0.0, 0.018).is_none());
         assert!(RestoringCurve::new(&[(0.01, p0), (0.0, p1)]).is_err());
+    }
+
+    #[test]
+    fn with_a_lever_envelope_the_lines_follow_the_lever_and_the_stiffness_is_the_centre_lines_slope()
+     {
+        let vsa = crate::lever::LeverVsa::paper_b();
+        let d = 0.014;
+        let p = RestoringParams {
+            k: 0.95 * vsa.stiffness_at_rest(d),
+            h: 0.05,
+            a_s: 60.0,
+            n: 0.6,
+        };
+        let mut m = RestoringTorqueModel::new(
+            RestoringCurve::constant(p).with_envelope(Envelope::Lever(vsa)),
+            AS5048A_COUNT_RAD,
+        );
+        let s = |phi: f64| vsa.torque(phi, d) / vsa.stiffness_at_rest(d);
+        let mut phi = 0.0;
+        m.update(phi, d);
+        while phi < 0.06 {
+            phi += 1e-4;
+            let tau = m.update(phi, d);
+            if phi > 0.02 {
+                assert_eq!(m.segment(), Segment::Line, "phi {phi}");
+                assert!((tau - (p.k * s(phi) + p.h)).abs() < 1e-12);
+                // The slope of the centre line k·s(φ), by central differences.
+                let fd = p.k * (s(phi + 1e-6) - s(phi - 1e-6)) / 2e-6;
+                assert!(
+                    (m.stiffness() - fd).abs() < 1e-6 * fd,
+                    "{} vs {fd}",
+                    m.stiffness()
+                );
+            }
+        }
+        // At 0.06 rad the lever has softened: the slope is well below k.
+        assert!(m.stiffness() < 0.85 * p.k);
+        // Straight lines: the slope is k everywhere.
+        let mut lin = RestoringTorqueModel::new(RestoringCurve::constant(p), AS5048A_COUNT_RAD);
+        lin.update(0.0, d);
+        lin.update(0.06, d);
+        assert!((lin.stiffness() - p.k).abs() < 1e-12 * p.k);
     }
 
     #[test]

@@ -11,7 +11,7 @@ use rig_config::{JointKind, RigConfig};
 use rig_model::allocation::AllocationProblem;
 use rig_model::estimator::{JointReadings, RobotEstimator};
 use rig_model::hysteresis::{
-    FitOptions, FitSample, RestoringCurve, RestoringTorqueModel, fit_restoring,
+    Envelope, FitOptions, FitSample, RestoringCurve, RestoringTorqueModel, fit_restoring,
 };
 use rig_model::lever::LeverVsa;
 use rig_model::planar::{PlanarRobot, s_matrix};
@@ -178,7 +178,15 @@ pub fn calibrate(
         )?);
     }
     progress("paper B: fitting the restoring-torque model", 0, 1);
-    let fit = fit_restoring(&data, &FitOptions::default())?;
+    // The envelope lines follow the lever's curve (restoring.rs: paper B's straight lines
+    // fitted over a stroke report a secant; k is then the stiffness at rest).
+    let fit = fit_restoring(
+        &data,
+        &FitOptions {
+            envelope: Envelope::Lever(vsa),
+            ..FitOptions::default()
+        },
+    )?;
     let mut rows = Vec::new();
     for (i, g) in fit.groups.iter().enumerate() {
         let eval = bench_run(vsa, g.d, o.evaluation_s, o, o.seed + 100 + i as u64)?;
