@@ -3,18 +3,21 @@
 //! - A request (query) is answered with an allocation and, when it can be applied, pivot
 //!   commands for every joint.
 //! - A continuous goal is kept; when the end-effector estimate moves more than
-//!   `reallocate_m` from the pose of the last allocation, it re-allocates.
+//!   `reallocate_m` from the pose of the last allocation, it re-allocates; and when a joint's
+//!   stiffness in use (the estimator's, at its current deflection) has drifted from what the
+//!   pivots were chosen for ([`AllocatorCore::on_joint_estimate`]): what is allocated is then
+//!   what the joints give over the motion, not only at rest.
 //! - The current pivot goals are re-sent at a steady rate (the joints' watchdogs expect a
 //!   heartbeat; without one they hold where they are).
 
-use rig_config::RigConfig;
+use rig_config::{JointKind, RigConfig};
 use rig_model::allocation::OperationalStiffness;
 use rig_protocol::{
-    AllocationRequest, AllocationResult, AllocationTarget, EeEstimate, JointCommand,
+    AllocationRequest, AllocationResult, AllocationTarget, EeEstimate, JointCommand, JointEstimate,
     StiffnessTriple,
 };
 
-use crate::plan::{PlanError, Target, allocate};
+use crate::plan::{PlanError, Target, allocate_in_use};
 
 /// How a continuous goal's stamp (the time its publisher's Zenoh session gave it) stands against
 /// this host's clock. A goal held up on the way, replayed from a recording or sent by a machine
@@ -77,7 +80,22 @@ pub struct AllocatorCore {
     cmd_seq: u64,
     /// Re-allocate when the pose moves more than this [m].
     pub reallocate_m: f64,
+    /// Per joint: the estimator's stiffness (at the joint's current deflection) over the
+    /// table's stiffness at rest at the commanded pivot, averaged over about a second (see
+    /// [`Self::on_joint_estimate`]); 1 until estimates come.
+    softening: Vec<f64>,
+    /// The softening the current pivots were chosen with.
+    applied_softening: Vec<f64>,
+    /// When a softening change last re-allocated [ns].
+    last_soft_ns: u64,
 }
+
+/// Weight of one joint estimate in the softening average (≈ 1 s at 1 kHz).
+const SOFTENING_WEIGHT: f64 = 1e-3;
+/// Re-allocate when a joint's softening moved this much since the pivots were chosen…
+const SOFTENING_STEP: f64 = 0.003;
+/// …at most this often [ns].
+const SOFTENING_EVERY_NS: u64 = 250_000_000;
 
 fn triple(k: OperationalStiffness) -> StiffnessTriple {
     StiffnessTriple {
@@ -114,6 +132,7 @@ impl From<Target> for AllocationTarget {
 impl AllocatorCore {
     pub fn new(cfg: RigConfig) -> Self {
         let pose = cfg.geometry.map_or((0.0, 0.0), |g| g.home);
+        let n = cfg.joints.len();
         Self {
             cfg,
             goal: None,
@@ -122,7 +141,44 @@ impl AllocatorCore {
             pose,
             cmd_seq: 0,
             reallocate_m: 0.002,
+            softening: vec![1.0; n],
+            applied_softening: vec![1.0; n],
+            last_soft_ns: 0,
         }
+    }
+
+    /// A joint estimate: folds the joint's stiffness in use, over the table's at rest at the
+    /// pivot this allocator commanded, into that joint's softening. A lever joint's deflection
+    /// changes its stiffness (at the stiff end of the travel by several per cent at the
+    /// robots' working deflections); a pivot chosen for the stiffness at rest then gives less
+    /// over the motion, and the next allocation asks the table for k / softening. Estimates
+    /// that are not plausible (not finite, beyond ±30 %) are ignored.
+    pub fn on_joint_estimate(&mut self, e: &JointEstimate) {
+        let j = usize::from(e.joint);
+        let (Some(k), Some(pivots), Some(joint)) = (
+            e.stiffness_nm_per_rad,
+            self.pivots.as_ref(),
+            self.cfg.joints.get(j),
+        ) else {
+            return;
+        };
+        let (JointKind::Lever { restoring, .. }, Some(&d)) = (&joint.kind, pivots.get(j)) else {
+            return;
+        };
+        let r = k / restoring.at(d).k;
+        if r.is_finite() && (0.7..=1.3).contains(&r) {
+            self.softening[j] += SOFTENING_WEIGHT * (r - self.softening[j]);
+        }
+    }
+
+    /// Whether a joint's softening moved enough since the pivots were chosen.
+    fn softening_moved(&self, now_ns: u64) -> bool {
+        now_ns >= self.last_soft_ns + SOFTENING_EVERY_NS
+            && self
+                .softening
+                .iter()
+                .zip(&self.applied_softening)
+                .any(|(s, a)| (s - a).abs() > SOFTENING_STEP)
     }
 
     fn commands(&mut self, now_ns: u64) -> Vec<JointCommand> {
@@ -155,7 +211,8 @@ impl AllocatorCore {
         target: Target,
         now_ns: u64,
     ) -> (AllocationResult, Vec<JointCommand>) {
-        match allocate(&self.cfg, at_m, target) {
+        let softening = self.softening.clone();
+        match allocate_in_use(&self.cfg, at_m, target, &softening) {
             Ok(plan) => {
                 let failure = plan.failure(self.cfg.topology);
                 let a = &plan.allocation;
@@ -173,6 +230,8 @@ impl AllocatorCore {
                 if failure.is_none() {
                     self.pivots = pivots;
                     self.last_pose = Some(at_m);
+                    self.applied_softening = softening;
+                    self.last_soft_ns = now_ns;
                     return (result, self.commands(now_ns));
                 }
                 (result, Vec::new())
@@ -204,7 +263,8 @@ impl AllocatorCore {
         self.apply(req.id, self.pose, req.target.into(), now_ns)
     }
 
-    /// An end-effector estimate: re-allocate if a goal is set and the pose moved enough.
+    /// An end-effector estimate: re-allocate if a goal is set and the pose moved enough, or a
+    /// joint's softening did.
     pub fn on_ee(
         &mut self,
         ee: &EeEstimate,
@@ -215,7 +275,7 @@ impl AllocatorCore {
         let moved = self
             .last_pose
             .is_none_or(|(x, y)| (x - ee.x_m).hypot(y - ee.y_m) > self.reallocate_m);
-        moved.then(|| self.apply(0, self.pose, goal, now_ns))
+        (moved || self.softening_moved(now_ns)).then(|| self.apply(0, self.pose, goal, now_ns))
     }
 
     /// The current pivot goals again (heartbeat for the joints' watchdogs).
@@ -367,5 +427,96 @@ mod tests {
             cmds[0].pivot_goal_m, first[0].pivot_goal_m,
             "new pose, new pivots"
         );
+    }
+
+    #[test]
+    fn joints_softened_by_their_deflection_get_pivots_that_give_the_allocated_stiffness_in_use() {
+        // Every joint reports 96 % of its table's stiffness at rest (its deflection in use):
+        // after about a second of estimates the goal is re-allocated at the same pose, the
+        // joint stiffnesses unchanged and each pivot's stiffness at rest k / 0.96.
+        let mut c = core();
+        let goal = AllocationRequest {
+            id: 4,
+            x_m: 0.075,
+            y_m: 0.2,
+            target: AllocationTarget::Percent(25.0),
+        };
+        let (first, _) = c.on_goal(&goal, 1);
+        let cfg = c.cfg.clone();
+        let table = |j: usize, d: f64| match &cfg.joints[j].kind {
+            JointKind::Lever { restoring, .. } => restoring.at(d).k,
+            JointKind::Awas { .. } => unreachable!(),
+        };
+        let ks: Vec<f64> = (0..4).map(|j| table(j, first.pivot_m[j])).collect();
+        for (j, k) in ks.iter().enumerate() {
+            assert!(
+                (k - first.k_joint_nm_per_rad[j]).abs() < 1e-6 * k,
+                "at rest at first"
+            );
+        }
+        let ee = EeEstimate {
+            seq: 1,
+            t_ns: 2,
+            stale_mask: 0,
+            x_m: 0.075,
+            y_m: 0.2,
+            phi_rad: 0.0,
+            force_n: None,
+            stiffness_n_per_m: None,
+        };
+        for i in 0..3000_u64 {
+            for (j, k) in ks.iter().enumerate() {
+                c.on_joint_estimate(&JointEstimate {
+                    joint: j as u16,
+                    seq: i,
+                    t_acq_ns: i,
+                    torque_nm: 0.0,
+                    stiffness_nm_per_rad: Some(0.96 * k),
+                    inertia_kg_m2: None,
+                    inertia_var: None,
+                    damping_nms_per_rad: None,
+                    damping_var: None,
+                    residual_nm: None,
+                });
+            }
+        }
+        assert!(
+            c.on_ee(&ee, 2).is_none(),
+            "not sooner than 250 ms after the last"
+        );
+        let (r, cmds) = c
+            .on_ee(&ee, 300_000_000)
+            .expect("the softening re-allocates");
+        assert!(r.feasible, "{}", r.error);
+        let soft = 1.0 - 0.04 * (1.0 - (-3.0_f64).exp()); // the average after 3000 estimates
+        for (j, cmd) in cmds.iter().enumerate() {
+            assert_eq!(r.k_joint_nm_per_rad[j], first.k_joint_nm_per_rad[j]);
+            let at_rest = table(j, cmd.pivot_goal_m.unwrap());
+            let want = first.k_joint_nm_per_rad[j] / soft;
+            assert!(
+                (at_rest - want).abs() < 1e-3 * want,
+                "joint {j}: {at_rest} for {want}"
+            );
+        }
+        // A forged, implausible estimate moves nothing.
+        let before = c.softening.clone();
+        let mut e = JointEstimate {
+            joint: 0,
+            seq: 0,
+            t_acq_ns: 0,
+            torque_nm: 0.0,
+            stiffness_nm_per_rad: Some(1e6),
+            inertia_kg_m2: None,
+            inertia_var: None,
+            damping_nms_per_rad: None,
+            damping_var: None,
+            residual_nm: None,
+        };
+        c.on_joint_estimate(&e);
+        e.stiffness_nm_per_rad = Some(f64::NAN);
+        c.on_joint_estimate(&e);
+        e.joint = 99;
+        c.on_joint_estimate(&e);
+        assert_eq!(c.softening, before);
     }
 }

@@ -5,7 +5,9 @@
 use std::time::Duration;
 
 use rig_config::RigConfig;
-use rig_protocol::{AllocationRequest, EeEstimate, JointCommand, Keys, decode, encode};
+use rig_protocol::{
+    AllocationRequest, EeEstimate, JointCommand, JointEstimate, Keys, decode, encode,
+};
 use rig_runtime::{NetOverrides, now_ns, open, zenoh_err as z};
 
 use crate::core::{AllocatorCore, GoalAge, goal_age, refusal};
@@ -55,6 +57,11 @@ pub async fn run(
         .map_err(z)?;
     let ees = session
         .declare_subscriber(keys.ee_estimate())
+        .await
+        .map_err(z)?;
+    // The joints' stiffness in use, to allocate for it (AllocatorCore::on_joint_estimate).
+    let joint_estimates = session
+        .declare_subscriber(keys.all_joint_estimates())
         .await
         .map_err(z)?;
     let mut cmd_pubs = Vec::new();
@@ -182,6 +189,14 @@ pub async fn run(
                         Vec::new()
                     }
                 }
+            }
+            e = joint_estimates.recv_async() => {
+                let Ok(e) = e else { break };
+                match decode::<JointEstimate>(&e.payload().to_bytes()) {
+                    Ok(je) => core.on_joint_estimate(&je),
+                    Err(_) => report.malformed += 1,
+                }
+                Vec::new()
             }
             e = ees.recv_async() => {
                 let Ok(e) = e else { break };

@@ -77,8 +77,22 @@ impl Plan {
     }
 }
 
-/// Computes the allocation for `target` with the end effector at `at_m`.
+/// Computes the allocation for `target` with the end effector at `at_m`, each joint's pivot
+/// giving its stiffness at rest (no deflection).
 pub fn allocate(cfg: &RigConfig, at_m: (f64, f64), target: Target) -> Result<Plan, PlanError> {
+    allocate_in_use(cfg, at_m, target, &[])
+}
+
+/// As [`allocate`], with joint j's pivot chosen for stiffness k_j / `softening[j]` at rest:
+/// `softening[j]` is how much the deflections in use change that joint's stiffness (the
+/// estimator's stiffness over the table's at rest, averaged; 1 where absent), so that over the
+/// motion the joint gives k_j. The pivot stays within what the table reaches.
+pub fn allocate_in_use(
+    cfg: &RigConfig,
+    at_m: (f64, f64),
+    target: Target,
+    softening: &[f64],
+) -> Result<Plan, PlanError> {
     if !cfg.topology.is_robot() {
         return Err(PlanError::Unsupported(format!(
             "a {} rig has no operational space; allocation needs a serial or parallel robot",
@@ -114,12 +128,13 @@ pub fn allocate(cfg: &RigConfig, at_m: (f64, f64), target: Target) -> Result<Pla
         .joints
         .iter()
         .zip(allocation.k.iter())
-        .map(|(j, &k)| match &j.kind {
+        .enumerate()
+        .map(|(i, (j, &k))| match &j.kind {
             // Through the calibrated k(d), the table the estimator reports its stiffness by,
             // so that what is allocated is what the joint gives (the lever law alone is a few
             // per cent off a real joint: friction in the loop, the spring's own rate).
             JointKind::Lever { vsa, restoring, .. } => restoring
-                .pivot_for_stiffness(k, vsa.d_min, vsa.d_max)
+                .pivot_for_stiffness(at_rest(k, softening.get(i).copied(), reach(j)), vsa.d_min, vsa.d_max)
                 .ok_or_else(|| {
                     let (lo, hi) = (restoring.at(vsa.d_min).k, restoring.at(vsa.d_max).k);
                     format!(
@@ -137,6 +152,15 @@ pub fn allocate(cfg: &RigConfig, at_m: (f64, f64), target: Target) -> Result<Pla
         allocation,
         pivots_m,
     })
+}
+
+/// The stiffness at rest that gives `k` in use, `k / softening`, kept within `bounds` (a
+/// softening that is not a plausible number — absent, not finite, beyond ±30 % — counts as 1).
+fn at_rest(k: f64, softening: Option<f64>, bounds: (f64, f64)) -> f64 {
+    match softening {
+        Some(r) if r.is_finite() && (0.7..=1.3).contains(&r) => (k / r).clamp(bounds.0, bounds.1),
+        _ => k,
+    }
 }
 
 /// Joint `j`'s stiffness bounds for allocation: the config's, within what a lever joint's
