@@ -322,6 +322,46 @@ mod tests {
         AllocatorCore::new(rig_config::examples::load("parallel").unwrap())
     }
 
+    /// Request `id`: paper B's decoupled target at 25 % with the end effector at (75, 200) mm.
+    fn request(id: u64) -> AllocationRequest {
+        AllocationRequest {
+            id,
+            x_m: 0.075,
+            y_m: 0.2,
+            target: AllocationTarget::Percent(25.0),
+        }
+    }
+
+    /// An end-effector estimate at (x, y) [m], stamped `t_ns`.
+    fn ee_at(x: f64, y: f64, t_ns: u64) -> EeEstimate {
+        EeEstimate {
+            seq: 1,
+            t_ns,
+            stale_mask: 0,
+            x_m: x,
+            y_m: y,
+            phi_rad: 0.0,
+            force_n: None,
+            stiffness_n_per_m: None,
+        }
+    }
+
+    /// Joint `joint`'s estimate with stiffness `k` and nothing else.
+    fn stiffness_estimate(joint: u16, seq: u64, k: f64) -> JointEstimate {
+        JointEstimate {
+            joint,
+            seq,
+            t_acq_ns: seq,
+            torque_nm: 0.0,
+            stiffness_nm_per_rad: Some(k),
+            inertia_kg_m2: None,
+            inertia_var: None,
+            damping_nms_per_rad: None,
+            damping_var: None,
+            residual_nm: None,
+        }
+    }
+
     #[test]
     fn a_target_survives_the_wire_both_ways() {
         let k = OperationalStiffness {
@@ -344,12 +384,7 @@ mod tests {
     #[test]
     fn a_request_becomes_pivot_commands_within_travel() {
         let mut c = core();
-        let req = AllocationRequest {
-            id: 9,
-            x_m: 0.075,
-            y_m: 0.2,
-            target: AllocationTarget::Percent(25.0),
-        };
+        let req = request(9);
         let (r, cmds) = c.on_request(&req, 5);
         assert!(r.feasible, "{}", r.error);
         assert_eq!(r.id, 9);
@@ -400,23 +435,9 @@ mod tests {
     #[test]
     fn a_goal_follows_the_pose() {
         let mut c = core();
-        let goal = AllocationRequest {
-            id: 3,
-            x_m: 0.075,
-            y_m: 0.2,
-            target: AllocationTarget::Percent(25.0),
-        };
+        let goal = request(3);
         let (_, first) = c.on_goal(&goal, 1);
-        let ee = |x: f64, y: f64| EeEstimate {
-            seq: 1,
-            t_ns: 2,
-            stale_mask: 0,
-            x_m: x,
-            y_m: y,
-            phi_rad: 0.0,
-            force_n: None,
-            stiffness_n_per_m: None,
-        };
+        let ee = |x: f64, y: f64| ee_at(x, y, 2);
         assert!(
             c.on_ee(&ee(0.0755, 0.2), 2).is_none(),
             "0.5 mm is below the threshold"
@@ -435,12 +456,7 @@ mod tests {
         // after about a second of estimates the goal is re-allocated at the same pose, the
         // joint stiffnesses unchanged and each pivot's stiffness at rest k / 0.96.
         let mut c = core();
-        let goal = AllocationRequest {
-            id: 4,
-            x_m: 0.075,
-            y_m: 0.2,
-            target: AllocationTarget::Percent(25.0),
-        };
+        let goal = request(4);
         let (first, _) = c.on_goal(&goal, 1);
         let cfg = c.cfg.clone();
         let table = |j: usize, d: f64| match &cfg.joints[j].kind {
@@ -454,30 +470,10 @@ mod tests {
                 "at rest at first"
             );
         }
-        let ee = EeEstimate {
-            seq: 1,
-            t_ns: 2,
-            stale_mask: 0,
-            x_m: 0.075,
-            y_m: 0.2,
-            phi_rad: 0.0,
-            force_n: None,
-            stiffness_n_per_m: None,
-        };
+        let ee = ee_at(0.075, 0.2, 2);
         for i in 0..3000_u64 {
             for (j, k) in ks.iter().enumerate() {
-                c.on_joint_estimate(&JointEstimate {
-                    joint: j as u16,
-                    seq: i,
-                    t_acq_ns: i,
-                    torque_nm: 0.0,
-                    stiffness_nm_per_rad: Some(0.96 * k),
-                    inertia_kg_m2: None,
-                    inertia_var: None,
-                    damping_nms_per_rad: None,
-                    damping_var: None,
-                    residual_nm: None,
-                });
+                c.on_joint_estimate(&stiffness_estimate(j as u16, i, 0.96 * k));
             }
         }
         assert!(
@@ -500,18 +496,7 @@ mod tests {
         }
         // A forged, implausible estimate moves nothing.
         let before = c.softening.clone();
-        let mut e = JointEstimate {
-            joint: 0,
-            seq: 0,
-            t_acq_ns: 0,
-            torque_nm: 0.0,
-            stiffness_nm_per_rad: Some(1e6),
-            inertia_kg_m2: None,
-            inertia_var: None,
-            damping_nms_per_rad: None,
-            damping_var: None,
-            residual_nm: None,
-        };
+        let mut e = stiffness_estimate(0, 0, 1e6);
         c.on_joint_estimate(&e);
         e.stiffness_nm_per_rad = Some(f64::NAN);
         c.on_joint_estimate(&e);
