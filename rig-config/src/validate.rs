@@ -1006,7 +1006,7 @@ fn lever(
     };
     // The allocator maps a stiffness to a pivot through the calibrated k(d), so the default
     // bounds are the calibrated table's over the travel (not the lever law's).
-    let range = (restoring.at(vsa.d_min).k, restoring.at(vsa.d_max).k);
+    let range = restoring.stiffness_range(vsa.d_min, vsa.d_max);
     Some((
         JointKind::Lever {
             vsa,

@@ -17,7 +17,7 @@ use rig_protocol::{
     StiffnessTriple,
 };
 
-use crate::plan::{PlanError, Target, allocate_in_use};
+use crate::plan::{PlanError, Target, allocate_in_use, plausible_softening};
 
 /// How a continuous goal's stamp (the time its publisher's Zenoh session gave it) stands against
 /// this host's clock. A goal held up on the way, replayed from a recording or sent by a machine
@@ -86,6 +86,8 @@ pub struct AllocatorCore {
     softening: Vec<f64>,
     /// The softening the current pivots were chosen with.
     applied_softening: Vec<f64>,
+    /// Per joint: the table's stiffness at rest at the commanded pivot (lever joints).
+    k_at_pivot: Vec<Option<f64>>,
     /// When a softening change last re-allocated [ns].
     last_soft_ns: u64,
 }
@@ -143,6 +145,7 @@ impl AllocatorCore {
             reallocate_m: 0.002,
             softening: vec![1.0; n],
             applied_softening: vec![1.0; n],
+            k_at_pivot: vec![None; n],
             last_soft_ns: 0,
         }
     }
@@ -155,18 +158,12 @@ impl AllocatorCore {
     /// that are not plausible (not finite, beyond ±30 %) are ignored.
     pub fn on_joint_estimate(&mut self, e: &JointEstimate) {
         let j = usize::from(e.joint);
-        let (Some(k), Some(pivots), Some(joint)) = (
-            e.stiffness_nm_per_rad,
-            self.pivots.as_ref(),
-            self.cfg.joints.get(j),
-        ) else {
+        let (Some(k), Some(&Some(at_rest))) = (e.stiffness_nm_per_rad, self.k_at_pivot.get(j))
+        else {
             return;
         };
-        let (JointKind::Lever { restoring, .. }, Some(&d)) = (&joint.kind, pivots.get(j)) else {
-            return;
-        };
-        let r = k / restoring.at(d).k;
-        if r.is_finite() && (0.7..=1.3).contains(&r) {
+        let r = k / at_rest;
+        if plausible_softening(r) {
             self.softening[j] += SOFTENING_WEIGHT * (r - self.softening[j]);
         }
     }
@@ -228,6 +225,18 @@ impl AllocatorCore {
                     error: failure.clone().unwrap_or_default(),
                 };
                 if failure.is_none() {
+                    if let Some(p) = &pivots {
+                        self.k_at_pivot = self
+                            .cfg
+                            .joints
+                            .iter()
+                            .zip(p)
+                            .map(|(j, &d)| match &j.kind {
+                                JointKind::Lever { restoring, .. } => Some(restoring.at(d).k),
+                                JointKind::Awas { .. } => None,
+                            })
+                            .collect();
+                    }
                     self.pivots = pivots;
                     self.last_pose = Some(at_m);
                     self.applied_softening = softening;

@@ -109,8 +109,9 @@ pub fn allocate_in_use(
             at_m.1 * 1e3
         ))
     })?;
-    let k_min = DVector::from_iterator(cfg.joints.len(), cfg.joints.iter().map(|j| reach(j).0));
-    let k_max = DVector::from_iterator(cfg.joints.len(), cfg.joints.iter().map(|j| reach(j).1));
+    let bounds: Vec<(f64, f64)> = cfg.joints.iter().map(reach).collect();
+    let k_min = DVector::from_iterator(bounds.len(), bounds.iter().map(|b| b.0));
+    let k_max = DVector::from_iterator(bounds.len(), bounds.iter().map(|b| b.1));
     let problem = AllocationProblem::new(s_matrix(&configuration.g_u_a), k_min, k_max)
         .map_err(|e| PlanError::Unsupported(format!("allocation problem: {e}")))?;
     let range = problem.range();
@@ -134,9 +135,13 @@ pub fn allocate_in_use(
             // so that what is allocated is what the joint gives (the lever law alone is a few
             // per cent off a real joint: friction in the loop, the spring's own rate).
             JointKind::Lever { vsa, restoring, .. } => restoring
-                .pivot_for_stiffness(at_rest(k, softening.get(i).copied(), reach(j)), vsa.d_min, vsa.d_max)
+                .pivot_for_stiffness(
+                    at_rest(k, softening.get(i).copied(), bounds[i]),
+                    vsa.d_min,
+                    vsa.d_max,
+                )
                 .ok_or_else(|| {
-                    let (lo, hi) = (restoring.at(vsa.d_min).k, restoring.at(vsa.d_max).k);
+                    let (lo, hi) = restoring.stiffness_range(vsa.d_min, vsa.d_max);
                     format!(
                         "{k:.4} N·m/rad is outside the calibrated table's range [{lo:.4}, {hi:.4}] N·m/rad over the pivot travel"
                     )
@@ -154,11 +159,17 @@ pub fn allocate_in_use(
     })
 }
 
-/// The stiffness at rest that gives `k` in use, `k / softening`, kept within `bounds` (a
-/// softening that is not a plausible number — absent, not finite, beyond ±30 % — counts as 1).
+/// Whether `r`, a joint's stiffness in use over its table's at rest, is a plausible softening
+/// (finite, within ±30 %): what a lever's deflection can do, not a forged or broken estimate.
+pub fn plausible_softening(r: f64) -> bool {
+    r.is_finite() && (0.7..=1.3).contains(&r)
+}
+
+/// The stiffness at rest that gives `k` in use, `k / softening`, kept within `bounds` (an
+/// absent or implausible softening counts as 1).
 fn at_rest(k: f64, softening: Option<f64>, bounds: (f64, f64)) -> f64 {
     match softening {
-        Some(r) if r.is_finite() && (0.7..=1.3).contains(&r) => (k / r).clamp(bounds.0, bounds.1),
+        Some(r) if plausible_softening(r) => (k / r).clamp(bounds.0, bounds.1),
         _ => k,
     }
 }
@@ -169,8 +180,7 @@ fn reach(j: &rig_config::JointConfig) -> (f64, f64) {
     let (lo, hi) = (j.limits.k_min, j.limits.k_max);
     match &j.kind {
         JointKind::Lever { vsa, restoring, .. } => {
-            let (a, b) = (restoring.at(vsa.d_min).k, restoring.at(vsa.d_max).k);
-            let (t_lo, t_hi) = (a.min(b), a.max(b));
+            let (t_lo, t_hi) = restoring.stiffness_range(vsa.d_min, vsa.d_max);
             // A table that misses the bounds altogether leaves them as they are; the pivot
             // lookup then says which stiffness it cannot reach.
             if t_lo.max(lo) < t_hi.min(hi) {

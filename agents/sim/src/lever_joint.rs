@@ -131,19 +131,16 @@ impl LeverJointPlant {
     /// in series with a slider), not the spring.
     pub fn stiffness(&self, t: f64) -> f64 {
         let (v, d, phi) = (&self.vsa, self.pivot.d, self.phi_s);
-        let (g, dg, alpha) = (v.g(phi, d), v.dg_dphi(phi, d), v.alpha(phi, d));
-        let mut k = self.hysteresis.a * v.k_alpha * (g * g + alpha * dg);
-        let excess = alpha.abs() - v.alpha_max;
-        if excess > 0.0 {
+        let mut k = self.hysteresis.a * v.stiffness_exact(phi, d);
+        let alpha = v.alpha(phi, d);
+        if alpha.abs() > v.alpha_max {
+            // The stop's torque k_s·(α − α_max·sgn α) through the lever: k_s·(G² + (α − α_max·sgn α)·G′).
             let beyond = alpha - v.alpha_max * alpha.signum();
-            k += self.hysteresis.stop_ratio * v.k_alpha * (g * g + beyond * dg);
+            k += self.hysteresis.stop_ratio
+                * v.k_alpha
+                * (v.g(phi, d).powi(2) + beyond * v.dg_dphi(phi, d));
         }
         k * self.effects.stiffness_scale(t)
-    }
-
-    /// Small-deflection stiffness at the current pivot: G(0)²·k_α (Bouc-Wen starts at slope k).
-    pub fn rest_stiffness(&self) -> f64 {
-        self.vsa.stiffness_at_rest(self.pivot.d)
     }
 }
 

@@ -146,12 +146,18 @@ impl RestoringCurve {
         }
     }
 
+    /// The stiffness at rest the table reaches over the travel [d_lo, d_hi], (lowest, highest)
+    /// of its ends (k(d) is monotone there, as a calibrated VSA's is).
+    pub fn stiffness_range(&self, d_lo: f64, d_hi: f64) -> (f64, f64) {
+        let (a, b) = (self.at(d_lo).k, self.at(d_hi).k);
+        (a.min(b), a.max(b))
+    }
+
     /// The pivot position in [d_lo, d_hi] where the stiffness at rest k(d) equals `k`, by
     /// bisection (k(d) must be monotone there, as a calibrated VSA's is). `None` outside.
     pub fn pivot_for_stiffness(&self, k: f64, d_lo: f64, d_hi: f64) -> Option<f64> {
-        let (k_lo, k_hi) = (self.at(d_lo).k, self.at(d_hi).k);
-        let rising = k_hi >= k_lo;
-        let (lo_k, hi_k) = if rising { (k_lo, k_hi) } else { (k_hi, k_lo) };
+        let rising = self.at(d_hi).k >= self.at(d_lo).k;
+        let (lo_k, hi_k) = self.stiffness_range(d_lo, d_hi);
         if !k.is_finite() || k < lo_k || k > hi_k {
             return None;
         }
