@@ -10,6 +10,7 @@
 
 mod error;
 mod raw;
+mod security;
 mod validate;
 
 use std::path::{Path, PathBuf};
@@ -20,7 +21,8 @@ use rig_model::hysteresis::RestoringCurve;
 use rig_model::lever::LeverVsa;
 use rig_model::observer::EkfConfig;
 use rig_model::planar::{Elbow, FiveBar, FiveBarGeometry, PlanarRobot, SerialArm};
-pub use validate::{check_endpoint, endpoint_reaches, unreachable_pairs};
+pub use security::{Grants, Identity, SecurityConfig, identities};
+pub use validate::{check_endpoint, endpoint_reaches, endpoint_security, unreachable_pairs};
 
 /// How the joints are arranged.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -307,6 +309,8 @@ pub struct RigConfig {
     pub clock: ClockConfig,
     /// The plan: which machine runs what (empty: all on one machine).
     pub machines: Vec<Machine>,
+    /// Mutual TLS and access control (`[security]`); `None`: insecure, for loopback.
+    pub security: Option<SecurityConfig>,
 }
 
 impl RigConfig {

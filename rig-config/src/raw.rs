@@ -15,6 +15,15 @@ pub struct RawConfig {
     pub clock: Option<RawClock>,
     #[serde(default)]
     pub machine: Vec<RawMachine>,
+    pub security: Option<RawSecurity>,
+}
+
+/// `[security]`: the lab CA and the directory of the identities' certificates.
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct RawSecurity {
+    pub ca: String,
+    pub certs: String,
 }
 
 /// One machine of the lab's plan: the roles it runs and how it joins the others.

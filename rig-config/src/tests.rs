@@ -265,10 +265,56 @@ fn zenoh_endpoints_are_checked() {
     let e = errors_after(
         "parallel.toml",
         "listen = []",
-        "listen = [\"tls/127.0.0.1:7447\"]",
+        "listen = [\"quic/127.0.0.1:7447\"]",
     );
     assert_eq!(e[0].field, "zenoh.listen[0]");
     assert!(e[0].message.contains("built with"), "{}", e[0].message);
+    // TLS needs the lab's certificates, and with them every link is TLS.
+    let e = errors_after(
+        "parallel.toml",
+        "listen = []",
+        "listen = [\"tls/127.0.0.1:7447\"]",
+    );
+    assert_eq!(e[0].field, "zenoh.listen[0]");
+    assert!(e[0].message.contains("[security]"), "{}", e[0].message);
+    let e = errors_after(
+        "parallel.toml",
+        "connect = []",
+        "connect = [\"tcp/127.0.0.1:7447\"]\n\n[security]\nca = \"certs/ca.pem\"\ncerts = \"certs\"",
+    );
+    // Every plain endpoint is named, the plan's too.
+    let fields: Vec<&str> = e.iter().map(|e| e.field.as_str()).collect();
+    assert_eq!(
+        fields,
+        [
+            "zenoh.connect[0]",
+            "machine[0].listen[0]",
+            "machine[1].connect[0]",
+            "machine[2].connect[0]"
+        ]
+    );
+    assert!(e.iter().all(|e| e.message.contains("mutual TLS")), "{e:?}");
+}
+
+#[test]
+fn the_security_paths_are_read_relative_to_the_config_file() {
+    let (path, src) = example("parallel.toml");
+    let src = src.replace("\"tcp/", "\"tls/").replace(
+        "[clock]",
+        "[security]\nca = \"certs/ca.pem\"\ncerts = \"certs\"\n\n[clock]",
+    );
+    let cfg = parse(&path, &src).unwrap();
+    let s = cfg.security.unwrap();
+    let dir = path.parent().unwrap();
+    assert_eq!(s.ca, dir.join("certs/ca.pem"));
+    assert_eq!(
+        s.cert(&Identity::Estimator),
+        dir.join("certs/estimator.pem")
+    );
+    assert_eq!(
+        s.key(&Identity::Joint("j1".into())),
+        dir.join("certs/joint-j1.key")
+    );
 }
 
 #[test]

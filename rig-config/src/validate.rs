@@ -198,6 +198,7 @@ fn build(c: &mut Collector<'_>, raw: &RawConfig) -> Option<RigConfig> {
         zenoh: zenoh?,
         clock: clock?,
         machines: vec![],
+        security: security(c, raw.security.as_ref()),
     };
     home_within_motor_limits(c, &jp, &cfg);
     let machines = machines(c, &raw.machine, &cfg);
@@ -205,7 +206,65 @@ fn build(c: &mut Collector<'_>, raw: &RawConfig) -> Option<RigConfig> {
         machines: machines?,
         ..cfg
     };
+    endpoints_match_security(c, raw, cfg.security.is_some());
     Some(cfg)
+}
+
+/// `[security]`: the CA and the certificates' directory, relative to the config file.
+/// Whether the files are there and match is `rig validate`'s check (it reads them).
+fn security(c: &mut Collector<'_>, raw: Option<&RawSecurity>) -> Option<SecurityConfig> {
+    let s = raw?;
+    let dir = c.file.parent().unwrap_or(Path::new("."));
+    let p = FieldPath::default().key("security");
+    for (field, v) in [("ca", &s.ca), ("certs", &s.certs)] {
+        if v.trim().is_empty() {
+            c.push(
+                &p.key(field),
+                "is empty: give a path relative to this file, e.g. ca = \"certs/ca.pem\", certs = \"certs\" (`rig certs` makes them)",
+            );
+        }
+    }
+    Some(SecurityConfig {
+        ca: dir.join(&s.ca),
+        certs: dir.join(&s.certs),
+    })
+}
+
+/// With `[security]` every endpoint is TLS (mutual TLS is what authenticates a peer); without
+/// it none is (there would be no certificate to present).
+fn endpoints_match_security(c: &mut Collector<'_>, raw: &RawConfig, secure: bool) {
+    let mut lists: Vec<(FieldPath, &[String])> = Vec::new();
+    if let Some(z) = &raw.zenoh {
+        let p = FieldPath::default().key("zenoh");
+        lists.push((p.key("listen"), &z.listen));
+        lists.push((p.key("connect"), &z.connect));
+    }
+    for (i, m) in raw.machine.iter().enumerate() {
+        let p = FieldPath::default().key("machine").index(i);
+        lists.push((p.key("listen"), &m.listen));
+        lists.push((p.key("connect"), &m.connect));
+    }
+    for (p, list) in lists {
+        for (i, e) in list.iter().enumerate() {
+            if let Err(msg) = endpoint_security(e, secure) {
+                c.push(&p.index(i), msg);
+            }
+        }
+    }
+}
+
+/// Whether endpoint `e` fits the rig's security: TLS with `[security]`, anything else without.
+pub fn endpoint_security(e: &str, secure: bool) -> Result<(), String> {
+    let tls = e.starts_with("tls/");
+    match (secure, tls) {
+        (true, false) => Err(format!(
+            "\"{e}\": with [security] every link is mutual TLS; write tls/<host>:<port> (docs/SECURITY.md)"
+        )),
+        (false, true) => Err(format!(
+            "\"{e}\": a tls endpoint needs the lab's certificates: add a [security] section (ca, certs) and make them with `rig certs` (docs/SECURITY.md), or use tcp/<host>:<port>"
+        )),
+        _ => Ok(()),
+    }
 }
 
 /// A robot's home pose puts each actuated joint's motor within its own limits (the
@@ -380,6 +439,7 @@ fn geometry(c: &mut Collector<'_>, t: Topology, raw: Option<&RawGeometry>) -> Op
         },
         clock: ClockConfig::default(),
         machines: vec![],
+        security: None,
     };
     match cfg.robot().map(|r| r.at_position(home.0, home.1)) {
         Some(Ok(_)) => Some(geo),
@@ -1439,7 +1499,7 @@ pub fn unreachable_pairs(ms: &[Machine]) -> Vec<(usize, usize)> {
 }
 
 /// The Zenoh transports the rig is built with (the workspace's `zenoh` features).
-pub const TRANSPORTS: [&str; 2] = ["tcp", "udp"];
+pub const TRANSPORTS: [&str; 3] = ["tcp", "udp", "tls"];
 
 /// A Zenoh endpoint: `<protocol>/<address>`, e.g. `tcp/127.0.0.1:7447`, on a transport the
 /// rig is built with ([`TRANSPORTS`]).

@@ -46,7 +46,7 @@ pub async fn run(
     let cfg = &opts.cfg;
     let keys = Keys::new(&cfg.name)?;
     let mut core = AllocatorCore::new(cfg.clone());
-    let session = open(&cfg.zenoh, &opts.net).await?;
+    let session = open(cfg, &opts.net, &rig_config::Identity::Allocator).await?;
     let queries = session
         .declare_queryable(keys.allocate())
         .await

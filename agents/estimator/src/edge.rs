@@ -189,7 +189,7 @@ pub async fn run(
     let cfg = &opts.cfg;
     let core = EstimatorCore::new(cfg, CoreTiming::for_config(cfg))?;
     let keys = Keys::new(&cfg.name)?;
-    let session = open(&cfg.zenoh, &opts.net).await?;
+    let session = open(cfg, &opts.net, &rig_config::Identity::Estimator).await?;
     let mut joints = Vec::new();
     for name in core.names() {
         joints.push(publisher(&session, keys.joint_estimate(name)?).await?);

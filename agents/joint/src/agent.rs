@@ -28,6 +28,9 @@ pub enum AgentError {
     Board(#[from] BoardError),
     #[error(transparent)]
     Runtime(#[from] rig_runtime::RuntimeError),
+    /// No certificate fits what the agent serves.
+    #[error("{0}")]
+    Identity(String),
 }
 
 impl From<rig_protocol::KeyError> for AgentError {
@@ -342,7 +345,16 @@ pub async fn run(
         .map(|n| joint_index(cfg, n))
         .collect::<Result<Vec<_>, _>>()?;
     let keys = Keys::new(&cfg.name)?;
-    let session = open(&cfg.zenoh, &opts.net).await?;
+    // Under [security] a board presents its joint's certificate; an agent serving several
+    // joints presents its machine's (`--identity`), or its samples would be refused.
+    if cfg.security.is_some() && opts.joints.len() > 1 && opts.net.identity.is_none() {
+        return Err(AgentError::Identity(format!(
+            "serving joints {} under [security] needs one certificate that may publish for all: give the machine's, --identity machine-<name> (docs/SECURITY.md)",
+            opts.joints.join(",")
+        )));
+    }
+    let who = rig_config::Identity::Joint(opts.joints[0].clone());
+    let session = open(cfg, &opts.net, &who).await?;
     let mut served = Vec::new();
     for (k, (name, &j)) in opts.joints.iter().zip(&js).enumerate() {
         let limits = guard_limits(cfg, j);

@@ -169,7 +169,8 @@ fn live(args: &Args, cfg: &RigConfig, at_m: (f64, f64), target: Target) -> Resul
     let bytes = encode(&req).map_err(|e| CliError::Invalid(format!("the request: {e}")))?;
     let within = args.within;
     let answer: Result<Vec<u8>, String> = rig_runtime::tokio_runtime(Some(1))?.block_on(async {
-        let session = rig_runtime::open(&cfg.zenoh, &args.net.overrides()).await?;
+        let session =
+            rig_runtime::open(cfg, &args.net.overrides(), &rig_config::Identity::Operator).await?;
         let replies = session
             .get(keys.allocate())
             .payload(bytes)

@@ -193,8 +193,14 @@ fn zerr<E: Into<zenoh::Error>>(e: E) -> CliError {
 
 /// Raw round trips between two Zenoh sessions on loopback, blocking API, `pings` timed.
 fn zenoh_rtt(cfg: &RigConfig, pings: usize, payload: Vec<u8>) -> Result<Vec<u64>, CliError> {
-    let hub = free_loopback_endpoint()?;
-    let config = |net: NetOverrides| zenoh_config(&cfg.zenoh, &net).map_err(CliError::from);
+    // Plain TCP on loopback between two bare sessions: the transport's own figure.
+    let hub = free_loopback_endpoint(false)?;
+    let bare = rig_config::ZenohConfig {
+        mode: cfg.zenoh.mode,
+        listen: vec![],
+        connect: vec![],
+    };
+    let config = |net: NetOverrides| zenoh_config(&bare, &net).map_err(CliError::from);
     let a = zenoh::open(config(NetOverrides {
         listen: vec![hub.clone()],
         ..Default::default()
@@ -288,7 +294,7 @@ fn run_rig(
     rt.block_on(async {
         let hub = Hub::start(
             cfg,
-            vec![free_loopback_endpoint()?],
+            vec![free_loopback_endpoint(cfg.security.is_some())?],
             vec![],
             Duration::from_secs(10),
         )
@@ -596,7 +602,7 @@ fn footprint(a: &FootprintArgs) -> Result<(), CliError> {
     );
     let rt = tokio_runtime(Some(2))?;
     let result = rt.block_on(async {
-        let endpoint = free_loopback_endpoint()?;
+        let endpoint = free_loopback_endpoint(cfg.security.is_some())?;
         let hub = Hub::start(
             &cfg,
             vec![endpoint.clone()],

@@ -73,7 +73,7 @@ impl Hub {
                 net: NetOverrides {
                     listen,
                     connect: connect.clone(),
-                    mode: None,
+                    ..Default::default()
                 },
                 duration: None,
             },
@@ -82,10 +82,10 @@ impl Hub {
         let peer = NetOverrides {
             listen: vec![],
             connect: std::iter::once(hub.clone()).chain(connect).collect(),
-            mode: None,
+            ..Default::default()
         };
         let keys = Keys::new(&cfg.name)?;
-        let session = open(&cfg.zenoh, &peer).await?;
+        let session = open(cfg, &peer, &rig_config::Identity::Operator).await?;
         let missing = wait_alive(&session, &[keys.alive("estimator", "0")?], up_within).await?;
         if !missing.is_empty() {
             let _ = stop_estimator.send(true);

@@ -17,8 +17,8 @@ use std::path::{Path, PathBuf};
 use std::process::{Child, Command, ExitStatus, Stdio};
 use std::time::Duration;
 
-use rig_config::{Machine, RigConfig, Role, ZenohConfig, ZenohMode};
-use rig_runtime::{NetOverrides, RunFor, tokio_runtime, zenoh, zenoh_config};
+use rig_config::{Identity, Machine, RigConfig, Role, ZenohMode};
+use rig_runtime::{NetOverrides, RunFor, session_config, tokio_runtime, zenoh};
 
 use crate::error::CliError;
 use crate::up::free_loopback_endpoint;
@@ -92,10 +92,11 @@ pub fn run(a: &Args) -> Result<(), CliError> {
 }
 
 /// The hub's Zenoh config: a router listening on the plan's endpoints and `local`, connecting
-/// to the plan's.
-fn hub_config(m: &Machine, local: &str) -> Result<zenoh::Config, CliError> {
-    let z = ZenohConfig {
-        mode: ZenohMode::Router,
+/// to the plan's; with `[security]` it presents the machine's certificate and checks every
+/// message against its sender's, its own roles' included.
+fn hub_config(cfg: &RigConfig, m: &Machine, local: &str) -> Result<zenoh::Config, CliError> {
+    let net = NetOverrides {
+        mode: Some(ZenohMode::Router),
         listen: m
             .listen
             .iter()
@@ -103,8 +104,13 @@ fn hub_config(m: &Machine, local: &str) -> Result<zenoh::Config, CliError> {
             .chain([local.to_string()])
             .collect(),
         connect: m.connect.clone(),
+        identity: None,
     };
-    Ok(zenoh_config(&z, &NetOverrides::default())?)
+    Ok(session_config(
+        cfg,
+        &net,
+        &Identity::Machine(m.name.clone()),
+    )?)
 }
 
 /// The command line of one role, joined to the hub at `local` as a client.
@@ -131,12 +137,13 @@ fn role_command(
         Role::Viz => c.args(["viz", "--viz"]),
     };
     c.arg("--config").arg(&a.config);
-    joined(&mut c, local, a);
+    joined(&mut c, cfg, m, local, a);
     Ok(Some((role.name().to_string(), c)))
 }
 
 /// The machine's joint agent: `rig-joint` beside this executable, serving all its joints.
 fn joint_command(
+    cfg: &RigConfig,
     m: &Machine,
     local: &str,
     a: &Args,
@@ -178,13 +185,19 @@ fn joint_command(
     if let Some(ns) = a.start_ns {
         c.arg("--start-ns").arg(ns.to_string());
     }
-    joined(&mut c, local, a);
+    joined(&mut c, cfg, m, local, a);
     Ok(Some((format!("joints {}", joints.join(",")), c)))
 }
 
-/// A client of the hub at `local`, for the run's duration.
-fn joined(c: &mut Command, local: &str, a: &Args) {
+/// A client of the hub at `local`, for the run's duration; under `[security]` it presents the
+/// machine's certificate.
+fn joined(c: &mut Command, cfg: &RigConfig, m: &Machine, local: &str, a: &Args) {
+    let who = Identity::Machine(m.name.clone()).name();
+    let identity = cfg.security.is_some().then_some(who.as_str());
     c.args(["--mode", "client", "--connect", local]);
+    if let Some(who) = identity {
+        c.args(["--identity", who]);
+    }
     if let Some(d) = a.run_for.duration {
         c.arg("--duration").arg(d.as_secs_f64().to_string());
     }
@@ -201,8 +214,8 @@ fn interrupt(child: &Child) {
 }
 
 async fn launch(cfg: &RigConfig, m: &Machine, a: &Args) -> Result<(), CliError> {
-    let local = free_loopback_endpoint()?;
-    let hub = zenoh::open(hub_config(m, &local)?)
+    let local = free_loopback_endpoint(cfg.security.is_some())?;
+    let hub = zenoh::open(hub_config(cfg, m, &local)?)
         .await
         .map_err(|e| CliError::Rig(format!("machine {}: its hub did not open: {e}", m.name)))?;
     eprintln!(
@@ -226,7 +239,7 @@ async fn launch(cfg: &RigConfig, m: &Machine, a: &Args) -> Result<(), CliError> 
             commands.push(c);
         }
     }
-    if let Some(c) = joint_command(m, &local, a)? {
+    if let Some(c) = joint_command(cfg, m, &local, a)? {
         commands.push(c);
     }
     let mut children: Vec<(String, Child)> = Vec::new();

@@ -29,6 +29,7 @@ mod allocate;
 mod bench;
 mod board;
 mod calibrate;
+mod certs;
 mod config;
 mod config_edit;
 mod error;
@@ -98,6 +99,13 @@ enum Command {
     ///
     /// Exit status: 0 when every file is valid, 1 otherwise.
     Validate(validate::Args),
+    /// Make the lab's CA and one TLS certificate per identity of a rig (each joint's board,
+    /// estimator, allocator, operator, recorder, viz, each machine of the plan), for
+    /// `[security]`: mutual TLS and access control (docs/SECURITY.md).
+    ///
+    ///   rig certs --config lab.toml --out certs/
+    #[command(verbatim_doc_comment)]
+    Certs(certs::Args),
     /// Choose joint stiffnesses that give a wanted operational stiffness at a pose
     /// (paper B eq. 31), and the pivot positions that set them.
     ///
@@ -160,6 +168,7 @@ fn main() -> ExitCode {
         Command::Replay(a) => record::replay(&a),
         Command::Export(a) => export::run(&a),
         Command::Validate(a) => validate::run(&a),
+        Command::Certs(a) => certs::run(&a),
         Command::Allocate(a) => allocate::run(&a),
         Command::Sim(a) => sim::run(&a),
         Command::Reproduce(a) => reproduce::run(&a),

@@ -58,7 +58,7 @@ pub fn run(a: &Args) -> Result<(), CliError> {
     let rt = tokio_runtime(Some(1))?;
     rt.block_on(async {
         let keys = Keys::new(&cfg.name)?;
-        let session = open(&cfg.zenoh, &a.net.overrides()).await?;
+        let session = open(&cfg, &a.net.overrides(), &rig_config::Identity::Operator).await?;
         let publisher = session
             .declare_publisher(keys.joint_command(&joint.name)?)
             .await

@@ -180,7 +180,7 @@ pub fn record(a: &RecordArgs) -> Result<(), CliError> {
     let rt = tokio_runtime(Some(2))?;
     rt.block_on(async {
         let keys = Keys::new(&cfg.name)?;
-        let session = open(&cfg.zenoh, &a.net.overrides())
+        let session = open(&cfg, &a.net.overrides(), &rig_config::Identity::Recorder)
             .await?;
         // A callback into an unbounded channel: the session's receive path never waits on the
         // disk, so nothing is dropped upstream while a write is slow.
@@ -397,9 +397,17 @@ pub fn replay(a: &ReplayArgs) -> Result<(), CliError> {
         );
         return Ok(());
     }
+    if cfg.security.is_some() {
+        // Under [security] only a joint's board may publish its samples: a replay onto the
+        // network would be a forgery, and every host would rightly drop it.
+        return Err(CliError::Invalid(format!(
+            "{} has [security]: a replay onto the network would publish other roles' messages and be refused; replay with --estimate (offline), or with a config without [security] on loopback",
+            cfg.source.display()
+        )));
+    }
     let rt = tokio_runtime(Some(2))?;
     rt.block_on(async {
-        let session = open(&cfg.zenoh, &a.net.overrides()).await?;
+        let session = open(&cfg, &a.net.overrides(), &rig_config::Identity::Operator).await?;
         tokio::time::sleep(Duration::from_millis(500)).await;
         let t0 = msgs.first().map_or(0, |m| m.log_time);
         let start = tokio::time::Instant::now();

@@ -61,10 +61,11 @@ pub struct Args {
     viz: crate::viz::VizArgs,
 }
 
-/// A Zenoh endpoint on a loopback port free now.
-pub(crate) fn free_loopback_endpoint() -> Result<String, CliError> {
+/// A Zenoh endpoint on a loopback port free now (TLS when `secure`).
+pub(crate) fn free_loopback_endpoint(secure: bool) -> Result<String, CliError> {
     let l = std::net::TcpListener::bind("127.0.0.1:0")?;
-    Ok(format!("tcp/127.0.0.1:{}", l.local_addr()?.port()))
+    let proto = if secure { "tls" } else { "tcp" };
+    Ok(format!("{proto}/127.0.0.1:{}", l.local_addr()?.port()))
 }
 
 /// How long `rig up` waits for a role's liveliness token.
@@ -92,7 +93,7 @@ async fn up(cfg: RigConfig, args: &Args) -> Result<(), CliError> {
     };
     let hub = match args.net.listen.first() {
         Some(e) => e.clone(),
-        None => free_loopback_endpoint()?,
+        None => free_loopback_endpoint(cfg.security.is_some())?,
     };
     let mut listen = vec![hub.clone()];
     listen.extend(args.net.listen.iter().skip(1).cloned());

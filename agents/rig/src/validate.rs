@@ -18,8 +18,18 @@ pub fn run(args: &Args) -> Result<(), CliError> {
     for f in &args.files {
         match rig_config::load(f) {
             Ok(cfg) => {
-                println!("ok: {}: {}", f.display(), summary(&cfg));
-                print!("{}", plan(&cfg));
+                // The files [security] names: there, made out to each identity, signed by
+                // the lab's CA, valid now.
+                let problems = crate::certs::check(&cfg);
+                if problems.is_empty() {
+                    println!("ok: {}: {}", f.display(), summary(&cfg));
+                    print!("{}", plan(&cfg));
+                } else {
+                    for p in &problems {
+                        eprintln!("{}: {p}", f.display());
+                    }
+                    failed += 1;
+                }
             }
             Err(e) => {
                 eprintln!("{e}");
@@ -52,11 +62,16 @@ fn summary(cfg: &RigConfig) -> String {
         })
         .collect();
     format!(
-        "rig \"{}\", {} topology at {} Hz; joints: {}",
+        "rig \"{}\", {} topology at {} Hz; joints: {}; {}",
         cfg.name,
         cfg.topology.name(),
         cfg.rate_hz,
-        kinds.join(", ")
+        kinds.join(", "),
+        if cfg.security.is_some() {
+            "secured: mutual TLS, access control by role"
+        } else {
+            "insecure (no [security]): for loopback and trusted networks"
+        }
     )
 }
 

@@ -119,7 +119,7 @@ pub async fn observe_with(
     stop: impl std::future::Future<Output = ()>,
 ) -> Result<(), CliError> {
     let keys = rig_protocol::Keys::new(&cfg.name)?;
-    let session = open(&cfg.zenoh, net).await?;
+    let session = open(cfg, net, &rig_config::Identity::Viz).await?;
     let sub = session
         .declare_subscriber(keys.all())
         .callback(move |s| {

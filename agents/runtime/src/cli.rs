@@ -21,6 +21,10 @@ pub struct NetArgs {
     /// endpoints it connects to; what `rig launch` gives a machine's roles) or router
     #[arg(long, value_name = "MODE", value_parser = mode)]
     pub mode: Option<ZenohMode>,
+    /// With [security]: present this identity's certificate instead of the role's own, e.g.
+    /// machine-board1 (what `rig launch` gives a machine's roles; docs/SECURITY.md)
+    #[arg(long, value_name = "NAME")]
+    pub identity: Option<String>,
 }
 
 fn mode(s: &str) -> Result<ZenohMode, String> {
@@ -41,6 +45,7 @@ impl NetArgs {
             listen: self.listen.clone(),
             connect: self.connect.clone(),
             mode: self.mode,
+            identity: self.identity.clone(),
         }
     }
 }

@@ -8,7 +8,7 @@
 
 use std::time::{SystemTime, UNIX_EPOCH};
 
-use rig_config::{ZenohConfig, ZenohMode};
+use rig_config::{Identity, RigConfig, ZenohConfig, ZenohMode, identities};
 use serde_json::json;
 use thiserror::Error;
 
@@ -26,6 +26,9 @@ pub enum RuntimeError {
         #[source]
         source: zenoh::Error,
     },
+    /// `[security]` cannot be applied (a certificate missing).
+    #[error("security: {0}")]
+    Security(String),
     #[error("zenoh session: {0}")]
     Session(#[source] zenoh::Error),
     #[error("invalid endpoint {endpoint:?}: {why}")]
@@ -76,6 +79,8 @@ pub struct NetOverrides {
     /// Replaces the config's `[zenoh].mode` (`rig launch` runs its roles as clients of the
     /// machine's hub).
     pub mode: Option<ZenohMode>,
+    /// The identity to present instead of the role's own (`rig launch`: the machine's).
+    pub identity: Option<String>,
 }
 
 /// A role's loop clock: a tick every `period` (missed ticks skipped, not bunched) until the
@@ -133,8 +138,100 @@ pub fn now_ns() -> u64 {
 }
 
 /// The Zenoh config of one agent: the rig's mode and endpoints, CLI overrides winning.
-/// Without any listen endpoint a peer listens on an ephemeral loopback port.
+/// Without any listen endpoint a peer listens on an ephemeral loopback port. Insecure: for
+/// `rig bench`'s own sessions and tests; the rig's roles open with [`session_config`].
 pub fn zenoh_config(z: &ZenohConfig, net: &NetOverrides) -> Result<zenoh::Config, RuntimeError> {
+    Ok(plain_config(z, net, false)?.0)
+}
+
+/// The session config of the process `who` in `cfg`: [`zenoh_config`], and with `[security]`
+/// mutual TLS with `who`'s certificate and the rig's access control ([`access_control`]).
+pub fn session_config(
+    cfg: &RigConfig,
+    net: &NetOverrides,
+    who: &Identity,
+) -> Result<zenoh::Config, RuntimeError> {
+    let who = &match &net.identity {
+        Some(name) => Identity::parse(cfg, name).map_err(RuntimeError::Security)?,
+        None => who.clone(),
+    };
+    let (mut c, listen, mode) = plain_config(&cfg.zenoh, net, cfg.security.is_some())?;
+    let Some(sec) = &cfg.security else {
+        let open: Vec<&String> = listen.iter().filter(|e| !on_loopback(e)).collect();
+        if !open.is_empty() {
+            eprintln!(
+                "{}: INSECURE — listening on {} without [security]: anyone who reaches it can command the rig and forge samples (docs/SECURITY.md)",
+                who.name(),
+                open.iter()
+                    .map(|e| e.as_str())
+                    .collect::<Vec<_>>()
+                    .join(", ")
+            );
+        }
+        return Ok(c);
+    };
+    let (cert, key) = (sec.cert(who), sec.key(who));
+    for (what, f) in [
+        ("the lab CA", &sec.ca),
+        ("its certificate", &cert),
+        ("its key", &key),
+    ] {
+        if !f.is_file() {
+            return Err(RuntimeError::Security(format!(
+                "{}: {what} {} is missing (make the lab's certificates with `rig certs --config {}`)",
+                who.name(),
+                f.display(),
+                cfg.source.display()
+            )));
+        }
+    }
+    let path = |p: &std::path::Path| json!(p.to_string_lossy());
+    let tls = json!({
+        "root_ca_certificate": path(&sec.ca),
+        "listen_certificate": path(&cert),
+        "listen_private_key": path(&key),
+        "connect_certificate": path(&cert),
+        "connect_private_key": path(&key),
+        "enable_mtls": true,
+        // Who a peer is comes from its certificate's common name, checked against the lab
+        // CA, not from the host name it was reached at (a lab's addresses change).
+        "verify_name_on_connect": false,
+    });
+    set(&mut c, "transport/link/tls", tls)?;
+    let trusted_hub = match (who, mode) {
+        (Identity::Machine(_), ZenohMode::Client) => Some(who),
+        _ => None,
+    };
+    set(&mut c, "access_control", access_control(cfg, trusted_hub))?;
+    Ok(c)
+}
+
+/// Sets `k` to `v` (serde_json: an endpoint's characters are escaped, never spliced).
+fn set(c: &mut zenoh::Config, k: &str, v: serde_json::Value) -> Result<(), RuntimeError> {
+    c.insert_json5(k, &v.to_string())
+        .map_err(|source| RuntimeError::Config {
+            key: k.to_string(),
+            source,
+        })
+}
+
+/// Whether an endpoint's host is a loopback address.
+fn on_loopback(e: &str) -> bool {
+    let addr = e.split_once('/').map_or(e, |(_, a)| a);
+    let host = addr.rsplit_once(':').map_or(addr, |(h, _)| h);
+    let host = host.trim_start_matches('[').trim_end_matches(']');
+    host == "localhost"
+        || host
+            .parse::<std::net::IpAddr>()
+            .is_ok_and(|ip| ip.is_loopback())
+}
+
+/// The mode and endpoints (`tls/` loopback by default when `secure`), without security.
+fn plain_config(
+    z: &ZenohConfig,
+    net: &NetOverrides,
+    secure: bool,
+) -> Result<(zenoh::Config, Vec<String>, ZenohMode), RuntimeError> {
     let listen = if net.listen.is_empty() {
         z.listen.clone()
     } else {
@@ -146,10 +243,12 @@ pub fn zenoh_config(z: &ZenohConfig, net: &NetOverrides) -> Result<zenoh::Config
         net.connect.clone()
     };
     for e in listen.iter().chain(&connect) {
-        rig_config::check_endpoint(e).map_err(|why| RuntimeError::Endpoint {
-            endpoint: e.clone(),
-            why,
-        })?;
+        rig_config::check_endpoint(e)
+            .and_then(|()| rig_config::endpoint_security(e, secure))
+            .map_err(|why| RuntimeError::Endpoint {
+                endpoint: e.clone(),
+                why,
+            })?;
     }
     let mode_of = net.mode.unwrap_or(z.mode);
     let mode = match mode_of {
@@ -158,19 +257,12 @@ pub fn zenoh_config(z: &ZenohConfig, net: &NetOverrides) -> Result<zenoh::Config
         ZenohMode::Router => "router",
     };
     let listen = if listen.is_empty() && mode_of != ZenohMode::Client {
-        vec!["tcp/127.0.0.1:0".to_string()]
+        let proto = if secure { "tls" } else { "tcp" };
+        vec![format!("{proto}/127.0.0.1:0")]
     } else {
         listen
     };
     let mut c = zenoh::Config::default();
-    // Values as JSON from serde_json: an endpoint's characters are escaped, never spliced.
-    let set = |c: &mut zenoh::Config, k: &str, v: serde_json::Value| {
-        c.insert_json5(k, &v.to_string())
-            .map_err(|source| RuntimeError::Config {
-                key: k.to_string(),
-                source,
-            })
-    };
     set(&mut c, "mode", json!(mode))?;
     set(&mut c, "listen/endpoints", json!(listen))?;
     set(&mut c, "connect/endpoints", json!(connect))?;
@@ -185,7 +277,80 @@ pub fn zenoh_config(z: &ZenohConfig, net: &NetOverrides) -> Result<zenoh::Config
     )?;
     set(&mut c, "scouting/multicast/enabled", json!(false))?;
     set(&mut c, "timestamping/enabled", json!(true))?;
-    Ok(c)
+    Ok((c, listen, mode_of))
+}
+
+/// Zenoh's access control for the rig (`access_control` in Zenoh's config), default deny:
+/// a peer presenting identity X's certificate may publish (`put`) and declare liveliness
+/// tokens only on X's keys ([`Identity::grants`]); every lab certificate may subscribe and
+/// receive. `trusted_hub`: a client of its machine's hub (`rig launch`) accepts everything
+/// from it, because the hub has already checked each message against its sender.
+pub fn access_control(cfg: &RigConfig, trusted_hub: Option<&Identity>) -> serde_json::Value {
+    let prefix = format!("rig/{}", cfg.name);
+    let everyone: Vec<String> = identities(cfg).iter().map(Identity::name).collect();
+    let mut rules = vec![
+        json!({
+            "id": "listen",
+            "messages": ["declare_subscriber", "declare_queryable", "reply",
+                         "declare_liveliness_subscriber", "liveliness_query"],
+            "flows": ["ingress", "egress"],
+            "permission": "allow",
+            "key_exprs": ["**"],
+        }),
+        json!({
+            "id": "send",
+            "messages": ["put", "delete", "query", "liveliness_token"],
+            "flows": ["egress"],
+            "permission": "allow",
+            "key_exprs": ["**"],
+        }),
+    ];
+    let mut subjects = vec![json!({"id": "lab", "cert_common_names": everyone})];
+    let mut policies = vec![json!({"rules": ["listen", "send"], "subjects": ["lab"]})];
+    for who in identities(cfg) {
+        let name = who.name();
+        let g = who.grants(cfg);
+        let keys =
+            |ks: &[String]| -> Vec<String> { ks.iter().map(|k| format!("{prefix}/{k}")).collect() };
+        let mut mine = Vec::new();
+        let trusted = trusted_hub == Some(&who);
+        let all = || vec![format!("{prefix}/**")];
+        let (put, query, alive) = if trusted {
+            (all(), all(), all())
+        } else {
+            (keys(&g.put), keys(&g.query), keys(&g.alive))
+        };
+        for (kind, messages, ks) in [
+            ("put", json!(["put", "delete"]), put),
+            ("query", json!(["query"]), query),
+            ("alive", json!(["liveliness_token"]), alive),
+        ] {
+            if ks.is_empty() {
+                continue;
+            }
+            let id = format!("{kind}-{name}");
+            rules.push(json!({
+                "id": id,
+                "messages": messages,
+                "flows": ["ingress"],
+                "permission": "allow",
+                "key_exprs": ks,
+            }));
+            mine.push(id);
+        }
+        if mine.is_empty() {
+            continue;
+        }
+        subjects.push(json!({"id": name, "cert_common_names": [name]}));
+        policies.push(json!({"rules": mine, "subjects": [name]}));
+    }
+    json!({
+        "enabled": true,
+        "default_permission": "deny",
+        "rules": rules,
+        "subjects": subjects,
+        "policies": policies,
+    })
 }
 
 /// Declares a publisher on `key` after declaring the key expression itself, so peers map it
@@ -200,9 +365,13 @@ pub async fn publisher(
     session.declare_publisher(declared).await.map_err(zenoh_err)
 }
 
-/// Opens a session.
-pub async fn open(z: &ZenohConfig, net: &NetOverrides) -> Result<zenoh::Session, RuntimeError> {
-    let config = zenoh_config(z, net)?;
+/// Opens the session of the process `who` ([`session_config`]).
+pub async fn open(
+    cfg: &RigConfig,
+    net: &NetOverrides,
+    who: &Identity,
+) -> Result<zenoh::Session, RuntimeError> {
+    let config = session_config(cfg, net, who)?;
     zenoh::open(config).await.map_err(RuntimeError::Session)
 }
 
@@ -296,6 +465,91 @@ mod tests {
     }
 
     #[test]
+    fn only_loopback_addresses_count_as_loopback() {
+        for e in [
+            "tcp/127.0.0.1:7447",
+            "tls/[::1]:7447",
+            "tcp/localhost:1",
+            "tcp/127.9.0.1:2",
+        ] {
+            assert!(on_loopback(e), "{e}");
+        }
+        for e in [
+            "tcp/0.0.0.0:7447",
+            "tls/10.0.0.2:7447",
+            "tcp/[::]:7447",
+            "tcp/lab-host:1",
+        ] {
+            assert!(!on_loopback(e), "{e}");
+        }
+    }
+
+    #[test]
+    fn the_access_control_denies_by_default_and_grants_each_identity_its_own_keys() {
+        let mut cfg = rig_config::examples::load("parallel").unwrap();
+        let acl = access_control(&cfg, None);
+        assert_eq!(acl["enabled"], true);
+        assert_eq!(acl["default_permission"], "deny");
+        let rule = |acl: &serde_json::Value, id: &str| {
+            acl["rules"]
+                .as_array()
+                .unwrap()
+                .iter()
+                .find(|r| r["id"] == id)
+                .cloned()
+        };
+        let j1 = rule(&acl, "put-joint-j1").unwrap();
+        assert_eq!(j1["flows"], json!(["ingress"]));
+        assert_eq!(
+            j1["key_exprs"],
+            json!([
+                "rig/parallel/joint/j1/sample",
+                "rig/parallel/joint/j1/status",
+                "rig/parallel/sim/joint/j1/truth"
+            ])
+        );
+        assert_eq!(
+            rule(&acl, "query-operator").unwrap()["key_exprs"],
+            json!(["rig/parallel/allocate"])
+        );
+        // Listeners publish nothing: no put rule, and no subject of their own beyond the lab's.
+        assert!(rule(&acl, "put-recorder").is_none());
+        // A client of its machine's hub takes everything the hub forwards.
+        let hub = Identity::Machine(cfg.machines[0].name.clone());
+        let trusting = access_control(&cfg, Some(&hub));
+        let name = hub.name();
+        assert_eq!(
+            rule(&trusting, &format!("put-{name}")).unwrap()["key_exprs"],
+            json!(["rig/parallel/**"])
+        );
+        assert_ne!(
+            rule(&acl, &format!("put-{name}")).unwrap()["key_exprs"],
+            json!(["rig/parallel/**"])
+        );
+        // Missing certificate files are named with the command that makes them.
+        cfg.security = Some(rig_config::SecurityConfig {
+            ca: "/nonexistent/ca.pem".into(),
+            certs: "/nonexistent".into(),
+        });
+        let e = session_config(&cfg, &NetOverrides::default(), &Identity::Estimator)
+            .unwrap_err()
+            .to_string();
+        assert!(
+            e.contains("/nonexistent/ca.pem") && e.contains("rig certs"),
+            "{e}"
+        );
+        // With [security], a plain endpoint on the command line is refused too.
+        let net = NetOverrides {
+            connect: vec!["tcp/127.0.0.1:7447".into()],
+            ..Default::default()
+        };
+        let e = session_config(&cfg, &net, &Identity::Estimator)
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("mutual TLS"), "{e}");
+    }
+
+    #[test]
     fn overrides_win_and_bad_endpoints_are_refused() {
         let z = ZenohConfig {
             mode: ZenohMode::Peer,
@@ -328,10 +582,11 @@ mod tests {
         let net = |listen: bool| NetOverrides {
             listen: if listen { vec![hub.clone()] } else { vec![] },
             connect: if listen { vec![] } else { vec![hub.clone()] },
-            mode: None,
+            ..Default::default()
         };
-        let a = open(&z, &net(true)).await.unwrap();
-        let b = open(&z, &net(false)).await.unwrap();
+        let open = |n: NetOverrides| zenoh::open(zenoh_config(&z, &n).unwrap());
+        let a = open(net(true)).await.unwrap();
+        let b = open(net(false)).await.unwrap();
         (a, b)
     }
 

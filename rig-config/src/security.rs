@@ -1,0 +1,239 @@
+//! `[security]`: who may say what on the rig's network.
+//!
+//! With a `[security]` section every link is TLS with client certificates (mutual TLS), all
+//! signed by the lab's CA, and every process drops what a peer's certificate does not allow
+//! it to publish (Zenoh's access control, default deny). Each process presents one
+//! certificate, its **identity**; its common name (CN) is the identity's name:
+//!
+//! | identity | CN | may publish (under `rig/<rig>/`) |
+//! |---|---|---|
+//! | a joint's board agent | `joint-<joint>` | `joint/<joint>/sample`, `…/status`, `sim/joint/<joint>/truth` |
+//! | estimator | `estimator` | `estimate/**` |
+//! | allocator | `allocator` | `joint/*/command`, `allocation/result` |
+//! | operator (`rig up`, `rig pivot`, `rig allocate`) | `operator` | `joint/*/command`, `stiffness/goal`; asks `allocate` |
+//! | recorder, viz | `recorder`, `viz` | nothing (they listen) |
+//! | a machine of the plan (`rig launch`) | `machine-<name>` | what its roles may |
+//!
+//! Each identity may also declare its own liveliness token (`alive/<role>/…`); anyone with
+//! a lab certificate may subscribe. This module is the table; `rig-runtime` turns it into
+//! Zenoh's TLS and access-control settings, `rig certs` makes the certificates, and
+//! `rig validate` checks the files. docs/SECURITY.md says what this protects and from whom.
+
+use std::path::PathBuf;
+
+use crate::{RigConfig, Role};
+
+/// Where the lab's CA and the identities' certificates are (`[security]`), resolved against
+/// the config file's directory.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct SecurityConfig {
+    /// The lab CA's certificate (PEM): every peer's certificate must be signed by it.
+    pub ca: PathBuf,
+    /// The directory holding `<identity>.pem` and `<identity>.key` for each identity.
+    pub certs: PathBuf,
+}
+
+impl SecurityConfig {
+    /// The certificate (PEM) of `who`.
+    pub fn cert(&self, who: &Identity) -> PathBuf {
+        self.certs.join(format!("{}.pem", who.name()))
+    }
+
+    /// The private key (PEM) of `who`.
+    pub fn key(&self, who: &Identity) -> PathBuf {
+        self.certs.join(format!("{}.key", who.name()))
+    }
+}
+
+/// Who a process is on the rig's network: the certificate it presents.
+#[derive(Debug, Clone, PartialEq, Eq, Hash, PartialOrd, Ord)]
+pub enum Identity {
+    /// The board agent serving this one joint.
+    Joint(String),
+    Estimator,
+    Allocator,
+    /// A person's tools: `rig up`'s goal, `rig pivot`, `rig allocate`.
+    Operator,
+    Recorder,
+    Viz,
+    /// Every process of one machine of the plan (`rig launch`), its hub included.
+    Machine(String),
+}
+
+/// What one identity may publish, as key expressions under the rig's prefix `rig/<rig>/`:
+/// data (`put`) and liveliness tokens.
+#[derive(Debug, Clone, Default, PartialEq, Eq)]
+pub struct Grants {
+    pub put: Vec<String>,
+    /// Queries it may send (`rig allocate` asks the allocator).
+    pub query: Vec<String>,
+    pub alive: Vec<String>,
+}
+
+impl Identity {
+    /// The certificate's common name, and the stem of its files.
+    pub fn name(&self) -> String {
+        match self {
+            Identity::Joint(j) => format!("joint-{j}"),
+            Identity::Estimator => "estimator".into(),
+            Identity::Allocator => "allocator".into(),
+            Identity::Operator => "operator".into(),
+            Identity::Recorder => "recorder".into(),
+            Identity::Viz => "viz".into(),
+            Identity::Machine(m) => format!("machine-{m}"),
+        }
+    }
+
+    /// The identity whose name is `name` in `cfg` (a joint or machine must exist).
+    pub fn parse(cfg: &RigConfig, name: &str) -> Result<Identity, String> {
+        let known = identities(cfg);
+        known
+            .iter()
+            .find(|i| i.name() == name)
+            .cloned()
+            .ok_or_else(|| {
+                let names: Vec<String> = known.iter().map(Identity::name).collect();
+                format!(
+                    "{name:?} is no identity of rig \"{}\"; it has {}",
+                    cfg.name,
+                    names.join(", ")
+                )
+            })
+    }
+
+    /// The identity of the process playing `role` (a joint: its board agent).
+    pub fn of_role(role: &Role) -> Identity {
+        match role {
+            Role::Joint(j) => Identity::Joint(j.clone()),
+            Role::Estimator => Identity::Estimator,
+            Role::Allocator => Identity::Allocator,
+            Role::Recorder => Identity::Recorder,
+            Role::Viz => Identity::Viz,
+        }
+    }
+
+    /// What this identity may publish in `cfg`.
+    pub fn grants(&self, cfg: &RigConfig) -> Grants {
+        let s = |v: &[&str]| v.iter().map(|k| k.to_string()).collect::<Vec<_>>();
+        match self {
+            Identity::Joint(j) => Grants {
+                put: vec![
+                    format!("joint/{j}/sample"),
+                    format!("joint/{j}/status"),
+                    format!("sim/joint/{j}/truth"),
+                ],
+                alive: vec![format!("alive/joint/{j}")],
+                ..Grants::default()
+            },
+            Identity::Estimator => Grants {
+                put: s(&["estimate/**"]),
+                alive: s(&["alive/estimator/**"]),
+                ..Grants::default()
+            },
+            Identity::Allocator => Grants {
+                put: s(&["joint/*/command", "allocation/result"]),
+                alive: s(&["alive/allocator/**"]),
+                ..Grants::default()
+            },
+            Identity::Operator => Grants {
+                put: s(&["joint/*/command", "stiffness/goal"]),
+                query: s(&["allocate"]),
+                alive: s(&["alive/operator/**"]),
+            },
+            Identity::Recorder => Grants {
+                alive: s(&["alive/recorder/**"]),
+                ..Grants::default()
+            },
+            Identity::Viz => Grants {
+                alive: s(&["alive/viz/**"]),
+                ..Grants::default()
+            },
+            Identity::Machine(m) => {
+                let mut g = Grants::default();
+                for r in cfg.machine(m).map_or(&[][..], |m| &m.roles[..]) {
+                    let r = Identity::of_role(r).grants(cfg);
+                    for k in r.put {
+                        if !g.put.contains(&k) {
+                            g.put.push(k);
+                        }
+                    }
+                    g.query.extend(r.query);
+                    g.alive.extend(r.alive);
+                }
+                g
+            }
+        }
+    }
+}
+
+/// Every identity of `cfg`, one certificate each: each joint's board, the hosts, the operator,
+/// the recorder and the view, and each machine of the plan.
+pub fn identities(cfg: &RigConfig) -> Vec<Identity> {
+    cfg.joints
+        .iter()
+        .map(|j| Identity::Joint(j.name.clone()))
+        .chain([
+            Identity::Estimator,
+            Identity::Allocator,
+            Identity::Operator,
+            Identity::Recorder,
+            Identity::Viz,
+        ])
+        .chain(
+            cfg.machines
+                .iter()
+                .map(|m| Identity::Machine(m.name.clone())),
+        )
+        .collect()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn each_identity_may_publish_only_its_own_keys_and_a_machine_what_its_roles_may() {
+        let mut cfg = crate::examples::load("parallel").unwrap();
+        let j1 = Identity::Joint("j1".into()).grants(&cfg);
+        assert_eq!(
+            j1.put,
+            ["joint/j1/sample", "joint/j1/status", "sim/joint/j1/truth"]
+        );
+        assert!(!j1.put.iter().any(|k| k.contains("command")));
+        assert!(
+            Identity::Estimator
+                .grants(&cfg)
+                .put
+                .iter()
+                .all(|k| k.starts_with("estimate/"))
+        );
+        assert!(Identity::Recorder.grants(&cfg).put.is_empty());
+        let op = Identity::Operator.grants(&cfg).put;
+        assert!(op.contains(&"stiffness/goal".to_string()));
+        assert!(
+            !Identity::Allocator
+                .grants(&cfg)
+                .put
+                .contains(&"stiffness/goal".to_string())
+        );
+        cfg.machines = vec![crate::Machine {
+            name: "board1".into(),
+            roles: vec![Role::Joint("j1".into()), Role::Allocator],
+            listen: vec![],
+            connect: vec![],
+        }];
+        let m = Identity::Machine("board1".into()).grants(&cfg);
+        assert!(m.put.contains(&"joint/j1/sample".to_string()));
+        assert!(m.put.contains(&"joint/*/command".to_string()));
+        assert!(!m.put.contains(&"joint/j2/sample".to_string()));
+        assert!(!m.put.iter().any(|k| k.starts_with("estimate")));
+        let names: Vec<String> = identities(&cfg).iter().map(Identity::name).collect();
+        assert!(names.contains(&"machine-board1".to_string()));
+        assert_eq!(
+            Identity::parse(&cfg, "joint-j2"),
+            Ok(Identity::Joint("j2".into()))
+        );
+        let e = Identity::parse(&cfg, "joint-j9").unwrap_err();
+        assert!(e.contains("joint-j9") && e.contains("estimator"), "{e}");
+    }
+}
