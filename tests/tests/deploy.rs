@@ -91,8 +91,9 @@ fn make_namespaces(tag: u32) -> Result<(Namespaces, [String; 3]), String> {
     Ok((made, names))
 }
 
-/// The example parallel robot with this test's plan in place of the example's.
-fn plan_config(dir: &Path) -> std::path::PathBuf {
+/// The example parallel robot with this test's plan in place of the example's; `secure`: every
+/// link mutual TLS with the lab's certificates from `rig certs`, and access control by role.
+fn plan_config(dir: &Path, secure: bool) -> std::path::PathBuf {
     let src = std::fs::read_to_string(config()).unwrap();
     let at = src.find("\n[[machine]]").expect("the example has a plan") + 1;
     let plan = r#"[[machine]]
@@ -111,7 +112,20 @@ roles = ["j3", "j4"]
 connect = ["tcp/10.201.2.1:7447"]
 "#;
     let path = dir.join("lab.toml");
-    std::fs::write(&path, format!("{}{plan}", &src[..at])).unwrap();
+    let mut toml = format!("{}{plan}", &src[..at]);
+    if secure {
+        toml = toml.replace("\"tcp/", "\"tls/")
+            + "\n[security]\nca = \"certs/ca.pem\"\ncerts = \"certs\"\n";
+    }
+    std::fs::write(&path, toml).unwrap();
+    if secure {
+        let o = Command::new(bin("rig"))
+            .args(["certs", "--config"])
+            .arg(&path)
+            .output()
+            .unwrap();
+        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    }
     path
 }
 
@@ -221,12 +235,15 @@ fn export_csv(recording: &Path, dir: &Path) -> std::path::PathBuf {
 }
 
 #[test]
-fn three_machines_in_network_namespaces_run_the_plan_and_estimate_the_force_across_them() {
+fn three_machines_in_network_namespaces_run_the_plan_over_mutual_tls_and_estimate_the_force_across_them()
+ {
     let Some((_namespaces, ns)) = namespaces_or_say_why(std::process::id() % 100_000) else {
         return;
     };
     let dir = test_dir("deploy");
-    let cfg_path = plan_config(&dir);
+    // Secured: each machine's hub and roles present the machine's certificate, the operator
+    // its own; every hub checks each message against its sender's role.
+    let cfg_path = plan_config(&dir, true);
     let rig = bin("rig");
 
     // The plan as `rig launch --plan` prints it.
@@ -240,7 +257,7 @@ fn three_machines_in_network_namespaces_run_the_plan_and_estimate_the_force_acro
     assert!(o.status.success(), "{plan}");
     assert!(
         plan.contains(
-            "machine \"chain2\" runs j3, j4; listens on nothing; connects to tcp/10.201.2.1:7447"
+            "machine \"chain2\" runs j3, j4; listens on nothing; connects to tls/10.201.2.1:7447"
         ),
         "{plan}"
     );
@@ -262,7 +279,7 @@ fn three_machines_in_network_namespaces_run_the_plan_and_estimate_the_force_acro
             .args(["allocate", "--config"])
             .arg(&cfg_path)
             .args(["--live", "--percent", "60", "--json", "--within", "2"])
-            .args(["--connect", "tcp/10.201.1.1:7447"])
+            .args(["--connect", "tls/10.201.1.1:7447"])
             .output()
             .unwrap();
         if o.status.success() {
@@ -379,7 +396,7 @@ fn a_board_computer_cut_off_for_3_s_and_for_15_s_is_estimated_again_within_1_s_o
         assert!(ok, "sysctl -w {key} in {board}");
     }
     let dir = test_dir("partition");
-    let cfg_path = plan_config(&dir);
+    let cfg_path = plan_config(&dir, false);
     let start = now_ns();
     let recording = dir.join("lab.mcap");
     let mut launched = launch_plan(&ns, &cfg_path, &dir, 36, start, &recording);

@@ -377,18 +377,7 @@ fn commands_watchdog_and_a_bus_fault_leave_the_servos_limp_and_say_why() {
         assert_eq!(torque(3), 0, "j3 is not this board's");
         // A pivot goal within the travel: the pivot servo's goal ramps there at 20 mm/s and
         // the pivot reported in the samples follows.
-        let command = |seq: u64, pivot_m: f64| {
-            encode(&JointCommand {
-                joint: 0,
-                seq,
-                t_ns: now_ns(),
-                motor_goal_rad: None,
-                pivot_goal_m: Some(pivot_m),
-                stiffness_motor_goal_rad: None,
-                torque_enable: true,
-            })
-            .unwrap()
-        };
+        let command = common::pivot_command;
         let key = "rig/parallel/joint/j1/command";
         let pub_ = z.declare_publisher(key).await.unwrap();
         for k in 0..10 {

@@ -108,12 +108,13 @@ pub async fn session(listen: &[&str], connect: &[&str]) -> rig_runtime::zenoh::S
     let cfg = rig_config::load(&config()).unwrap();
     let own = |v: &[&str]| v.iter().map(|e| e.to_string()).collect();
     rig_runtime::open(
-        &cfg.zenoh,
+        &cfg,
         &rig_runtime::NetOverrides {
             listen: own(listen),
             connect: own(connect),
-            mode: None,
+            ..Default::default()
         },
+        &rig_config::Identity::Operator,
     )
     .await
     .unwrap()
@@ -250,4 +251,18 @@ pub fn report_count(log: &Path, report: &str, label: &str) -> u64 {
                 .find_map(|p| p.strip_suffix(label)?.trim().parse().ok())
         })
         .unwrap_or_else(|| panic!("no \"{label}\" count after \"{report}\" in:\n{text}"))
+}
+
+/// A command holding joint 0 (of its key) at `pivot_m`, torque on, stamped now.
+pub fn pivot_command(seq: u64, pivot_m: f64) -> Vec<u8> {
+    rig_protocol::encode(&rig_protocol::JointCommand {
+        joint: 0,
+        seq,
+        t_ns: rig_runtime::now_ns(),
+        motor_goal_rad: None,
+        pivot_goal_m: Some(pivot_m),
+        stiffness_motor_goal_rad: None,
+        torque_enable: true,
+    })
+    .unwrap()
 }
