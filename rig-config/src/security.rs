@@ -166,6 +166,24 @@ impl Identity {
     }
 }
 
+/// The identity of a board agent serving `joints`: the joint's own for one joint; for several,
+/// the machine of the plan that runs them all (its certificate may publish for each). `None`
+/// when no one certificate may publish for all of them.
+pub fn board_identity(cfg: &RigConfig, joints: &[String]) -> Option<Identity> {
+    match joints {
+        [one] => Some(Identity::Joint(one.clone())),
+        _ => cfg
+            .machines
+            .iter()
+            .find(|m| {
+                joints
+                    .iter()
+                    .all(|j| m.roles.contains(&Role::Joint(j.clone())))
+            })
+            .map(|m| Identity::Machine(m.name.clone())),
+    }
+}
+
 /// Every identity of `cfg`, one certificate each: each joint's board, the hosts, the operator,
 /// the recorder and the view, and each machine of the plan.
 pub fn identities(cfg: &RigConfig) -> Vec<Identity> {
@@ -227,6 +245,21 @@ mod tests {
         assert!(m.put.contains(&"joint/*/command".to_string()));
         assert!(!m.put.contains(&"joint/j2/sample".to_string()));
         assert!(!m.put.iter().any(|k| k.starts_with("estimate")));
+        let served = |v: &[&str]| v.iter().map(|j| j.to_string()).collect::<Vec<_>>();
+        assert_eq!(
+            board_identity(&cfg, &served(&["j3"])),
+            Some(Identity::Joint("j3".into()))
+        );
+        assert_eq!(
+            board_identity(&cfg, &served(&["j1"])),
+            Some(Identity::Joint("j1".into()))
+        );
+        assert_eq!(board_identity(&cfg, &served(&["j1", "j2"])), None);
+        cfg.machines[0].roles.push(Role::Joint("j2".into()));
+        assert_eq!(
+            board_identity(&cfg, &served(&["j1", "j2"])),
+            Some(Identity::Machine("board1".into()))
+        );
         let names: Vec<String> = identities(&cfg).iter().map(Identity::name).collect();
         assert!(names.contains(&"machine-board1".to_string()));
         assert_eq!(

@@ -346,14 +346,20 @@ pub async fn run(
         .collect::<Result<Vec<_>, _>>()?;
     let keys = Keys::new(&cfg.name)?;
     // Under [security] a board presents its joint's certificate; an agent serving several
-    // joints presents its machine's (`--identity`), or its samples would be refused.
-    if cfg.security.is_some() && opts.joints.len() > 1 && opts.net.identity.is_none() {
-        return Err(AgentError::Identity(format!(
-            "serving joints {} under [security] needs one certificate that may publish for all: give the machine's, --identity machine-<name> (docs/SECURITY.md)",
-            opts.joints.join(",")
-        )));
-    }
-    let who = rig_config::Identity::Joint(opts.joints[0].clone());
+    // joints presents that of the plan's machine that runs them (or `--identity`), or its
+    // samples would be refused.
+    let who = match rig_config::board_identity(cfg, &opts.joints) {
+        Some(who) => who,
+        None if cfg.security.is_none() || opts.net.identity.is_some() => {
+            rig_config::Identity::Joint(opts.joints[0].clone())
+        }
+        None => {
+            return Err(AgentError::Identity(format!(
+                "serving joints {} under [security] needs one certificate that may publish for all of them: put them on one machine of the plan ([[machine]] roles) or give --identity machine-<name> (docs/SECURITY.md)",
+                opts.joints.join(",")
+            )));
+        }
+    };
     let session = open(cfg, &opts.net, &who).await?;
     let mut served = Vec::new();
     for (k, (name, &j)) in opts.joints.iter().zip(&js).enumerate() {
