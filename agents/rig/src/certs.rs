@@ -258,3 +258,78 @@ fn check_identity(
     }
     Ok(())
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The parallel example with `[security]` pointing into a fresh directory of its own.
+    fn lab(tag: &str) -> (RigConfig, PathBuf) {
+        let dir = std::env::temp_dir().join(format!("rig-certs-{tag}-{}", std::process::id()));
+        let _ = std::fs::remove_dir_all(&dir);
+        std::fs::create_dir_all(&dir).unwrap();
+        let mut cfg = rig_config::examples::load("parallel").unwrap();
+        cfg.security = Some(SecurityConfig {
+            ca: dir.join("ca.pem"),
+            certs: dir.clone(),
+        });
+        (cfg, dir)
+    }
+
+    #[test]
+    fn certs_made_for_a_rig_pass_the_check_and_each_kind_of_wrong_file_is_named() {
+        let (cfg, dir) = lab("check");
+        let made = make(&cfg, &dir, 30).unwrap();
+        assert_eq!(made.len(), identities(&cfg).len() + 1);
+        assert!(made.iter().all(|(_, new)| *new));
+        assert_eq!(check(&cfg), Vec::<String>::new());
+
+        // Run again: everything kept; a lost pair is made again with the same CA.
+        std::fs::remove_file(dir.join("viz.pem")).unwrap();
+        let again = make(&cfg, &dir, 30).unwrap();
+        let new: Vec<&str> = again
+            .iter()
+            .filter(|(_, new)| *new)
+            .map(|(n, _)| n.as_str())
+            .collect();
+        assert_eq!(new, ["viz"]);
+        assert_eq!(check(&cfg), Vec::<String>::new());
+
+        // Another lab's certificate in the estimator's place: not signed by this CA.
+        let (other_cfg, other) = lab("other");
+        make(&other_cfg, &other, 30).unwrap();
+        std::fs::copy(other.join("estimator.pem"), dir.join("estimator.pem")).unwrap();
+        std::fs::copy(other.join("estimator.key"), dir.join("estimator.key")).unwrap();
+        // The allocator's key swapped for the operator's: not the certificate's key.
+        std::fs::copy(dir.join("operator.key"), dir.join("allocator.key")).unwrap();
+        // The viewer's certificate made out to someone else.
+        std::fs::copy(dir.join("recorder.pem"), dir.join("viz.pem")).unwrap();
+        // A joint's key gone.
+        std::fs::remove_file(dir.join("joint-j2.key")).unwrap();
+        let problems = check(&cfg);
+        let has = |who: &str, what: &str| {
+            problems
+                .iter()
+                .any(|p| p.starts_with(&format!("identity {who}:")) && p.contains(what))
+        };
+        assert!(
+            has("estimator", "is not signed by the lab CA"),
+            "{problems:#?}"
+        );
+        assert!(has("allocator", "is not the key of"), "{problems:#?}");
+        assert!(has("viz", "is made out to \"recorder\""), "{problems:#?}");
+        assert!(has("joint-j2", "missing"), "{problems:#?}");
+        assert!(
+            problems.last().unwrap().contains("rig certs"),
+            "{problems:#?}"
+        );
+        assert_eq!(problems.len(), 5, "{problems:#?}");
+
+        // Half a CA is refused rather than replaced (every certificate would change).
+        std::fs::remove_file(other.join("ca.key")).unwrap();
+        let e = make(&other_cfg, &other, 30).unwrap_err().to_string();
+        assert!(e.contains("ca.pem and ca.key"), "{e}");
+        let _ = std::fs::remove_dir_all(&dir);
+        let _ = std::fs::remove_dir_all(&other);
+    }
+}
