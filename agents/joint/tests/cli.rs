@@ -79,6 +79,35 @@ fn runs_for_a_duration_and_reports() {
 }
 
 #[test]
+fn listening_beyond_loopback_without_security_says_insecure_and_on_loopback_does_not() {
+    let port = std::net::TcpListener::bind("127.0.0.1:0")
+        .unwrap()
+        .local_addr()
+        .unwrap()
+        .port();
+    // Listening only: nothing is sent anywhere (multicast scouting is off, nothing to connect).
+    let everywhere = format!("tcp/0.0.0.0:{port}");
+    let (code, err) = run(&[
+        "--config",
+        &example(),
+        "--joint",
+        "j1",
+        "--listen",
+        &everywhere,
+        "--duration",
+        "0.3",
+    ]);
+    assert_eq!(code, Some(0), "{err}");
+    assert!(
+        err.contains("INSECURE") && err.contains(&everywhere) && err.contains("SECURITY.md"),
+        "{err}"
+    );
+    let (code, err) = run(&["--config", &example(), "--joint", "j1", "--duration", "0.3"]);
+    assert_eq!(code, Some(0), "{err}");
+    assert!(!err.contains("INSECURE"), "{err}");
+}
+
+#[test]
 fn one_board_serves_several_joints() {
     let (code, err) = run(&[
         "--config",
