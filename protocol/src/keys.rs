@@ -100,6 +100,22 @@ impl Keys {
         format!("{}/joint/*/sample", self.prefix)
     }
 
+    /// Every joint's commands: `rig/<rig>/joint/*/command`.
+    pub fn all_joint_commands(&self) -> String {
+        format!("{}/joint/*/command", self.prefix)
+    }
+
+    /// Everything the estimator publishes: `rig/<rig>/estimate/**`.
+    pub fn all_estimates(&self) -> String {
+        format!("{}/estimate/**", self.prefix)
+    }
+
+    /// Every liveliness token of one role: `rig/<rig>/alive/<role>/**`.
+    pub fn all_alive(&self, role: &str) -> Result<String, KeyError> {
+        check_name("role", role)?;
+        Ok(format!("{}/alive/{role}/**", self.prefix))
+    }
+
     /// Every joint's estimate: `rig/<rig>/estimate/joint/*`.
     pub fn all_joint_estimates(&self) -> String {
         format!("{}/estimate/joint/*", self.prefix)

@@ -21,6 +21,8 @@
 
 use std::path::PathBuf;
 
+use rig_protocol::{KeyError, Keys};
+
 use crate::{RigConfig, Role};
 
 /// Where the lab's CA and the identities' certificates are (`[security]`), resolved against
@@ -60,8 +62,8 @@ pub enum Identity {
     Machine(String),
 }
 
-/// What one identity may publish, as key expressions under the rig's prefix `rig/<rig>/`:
-/// data (`put`) and liveliness tokens.
+/// What one identity may publish, as key expressions (`rig/<rig>/…`): data (`put`), queries
+/// and liveliness tokens.
 #[derive(Debug, Clone, Default, PartialEq, Eq)]
 pub struct Grants {
     pub put: Vec<String>,
@@ -112,46 +114,43 @@ impl Identity {
         }
     }
 
-    /// What this identity may publish in `cfg`.
-    pub fn grants(&self, cfg: &RigConfig) -> Grants {
-        let s = |v: &[&str]| v.iter().map(|k| k.to_string()).collect::<Vec<_>>();
-        match self {
+    /// What this identity may publish in `cfg`, as full key expressions from [`Keys`].
+    /// Fails only on a name `Keys` refuses, which a validated config does not hold.
+    pub fn grants(&self, cfg: &RigConfig) -> Result<Grants, KeyError> {
+        let k = Keys::new(&cfg.name)?;
+        Ok(match self {
             Identity::Joint(j) => Grants {
-                put: vec![
-                    format!("joint/{j}/sample"),
-                    format!("joint/{j}/status"),
-                    format!("sim/joint/{j}/truth"),
-                ],
-                alive: vec![format!("alive/joint/{j}")],
+                put: vec![k.joint_sample(j)?, k.joint_status(j)?, k.sim_truth(j)?],
+                alive: vec![k.alive("joint", j)?],
                 ..Grants::default()
             },
             Identity::Estimator => Grants {
-                put: s(&["estimate/**"]),
-                alive: s(&["alive/estimator/**"]),
+                put: vec![k.all_estimates()],
+                alive: vec![k.all_alive("estimator")?],
                 ..Grants::default()
             },
             Identity::Allocator => Grants {
-                put: s(&["joint/*/command", "allocation/result"]),
-                alive: s(&["alive/allocator/**"]),
+                put: vec![k.all_joint_commands(), k.allocation_result()],
+                alive: vec![k.all_alive("allocator")?],
                 ..Grants::default()
             },
             Identity::Operator => Grants {
-                put: s(&["joint/*/command", "stiffness/goal"]),
-                query: s(&["allocate"]),
-                alive: s(&["alive/operator/**"]),
+                put: vec![k.all_joint_commands(), k.stiffness_goal()],
+                query: vec![k.allocate()],
+                alive: vec![k.all_alive("operator")?],
             },
             Identity::Recorder => Grants {
-                alive: s(&["alive/recorder/**"]),
+                alive: vec![k.all_alive("recorder")?],
                 ..Grants::default()
             },
             Identity::Viz => Grants {
-                alive: s(&["alive/viz/**"]),
+                alive: vec![k.all_alive("viz")?],
                 ..Grants::default()
             },
             Identity::Machine(m) => {
                 let mut g = Grants::default();
                 for r in cfg.machine(m).map_or(&[][..], |m| &m.roles[..]) {
-                    let r = Identity::of_role(r).grants(cfg);
+                    let r = Identity::of_role(r).grants(cfg)?;
                     for k in r.put {
                         if !g.put.contains(&k) {
                             g.put.push(k);
@@ -162,7 +161,7 @@ impl Identity {
                 }
                 g
             }
-        }
+        })
     }
 }
 
@@ -212,27 +211,34 @@ mod tests {
     #[test]
     fn each_identity_may_publish_only_its_own_keys_and_a_machine_what_its_roles_may() {
         let mut cfg = crate::examples::load("parallel").unwrap();
-        let j1 = Identity::Joint("j1".into()).grants(&cfg);
+        let j1 = Identity::Joint("j1".into()).grants(&cfg).unwrap();
         assert_eq!(
             j1.put,
-            ["joint/j1/sample", "joint/j1/status", "sim/joint/j1/truth"]
+            [
+                "rig/parallel/joint/j1/sample",
+                "rig/parallel/joint/j1/status",
+                "rig/parallel/sim/joint/j1/truth"
+            ]
         );
+        assert_eq!(j1.alive, ["rig/parallel/alive/joint/j1"]);
         assert!(!j1.put.iter().any(|k| k.contains("command")));
         assert!(
             Identity::Estimator
                 .grants(&cfg)
+                .unwrap()
                 .put
                 .iter()
-                .all(|k| k.starts_with("estimate/"))
+                .all(|k| k.starts_with("rig/parallel/estimate/"))
         );
-        assert!(Identity::Recorder.grants(&cfg).put.is_empty());
-        let op = Identity::Operator.grants(&cfg).put;
-        assert!(op.contains(&"stiffness/goal".to_string()));
+        assert!(Identity::Recorder.grants(&cfg).unwrap().put.is_empty());
+        let op = Identity::Operator.grants(&cfg).unwrap().put;
+        assert!(op.contains(&"rig/parallel/stiffness/goal".to_string()));
         assert!(
             !Identity::Allocator
                 .grants(&cfg)
+                .unwrap()
                 .put
-                .contains(&"stiffness/goal".to_string())
+                .contains(&"rig/parallel/stiffness/goal".to_string())
         );
         cfg.machines = vec![crate::Machine {
             name: "board1".into(),
@@ -240,11 +246,11 @@ mod tests {
             listen: vec![],
             connect: vec![],
         }];
-        let m = Identity::Machine("board1".into()).grants(&cfg);
-        assert!(m.put.contains(&"joint/j1/sample".to_string()));
-        assert!(m.put.contains(&"joint/*/command".to_string()));
-        assert!(!m.put.contains(&"joint/j2/sample".to_string()));
-        assert!(!m.put.iter().any(|k| k.starts_with("estimate")));
+        let m = Identity::Machine("board1".into()).grants(&cfg).unwrap();
+        assert!(m.put.contains(&"rig/parallel/joint/j1/sample".to_string()));
+        assert!(m.put.contains(&"rig/parallel/joint/*/command".to_string()));
+        assert!(!m.put.contains(&"rig/parallel/joint/j2/sample".to_string()));
+        assert!(!m.put.iter().any(|k| k.starts_with("rig/parallel/estimate")));
         let served = |v: &[&str]| v.iter().map(|j| j.to_string()).collect::<Vec<_>>();
         assert_eq!(
             board_identity(&cfg, &served(&["j3"])),

@@ -192,11 +192,10 @@ fn joint_command(
 /// A client of the hub at `local`, for the run's duration; under `[security]` it presents the
 /// machine's certificate.
 fn joined(c: &mut Command, cfg: &RigConfig, m: &Machine, local: &str, a: &Args) {
-    let who = Identity::Machine(m.name.clone()).name();
-    let identity = cfg.security.is_some().then_some(who.as_str());
     c.args(["--mode", "client", "--connect", local]);
-    if let Some(who) = identity {
-        c.args(["--identity", who]);
+    if cfg.security.is_some() {
+        c.arg("--identity")
+            .arg(Identity::Machine(m.name.clone()).name());
     }
     if let Some(d) = a.run_for.duration {
         c.arg("--duration").arg(d.as_secs_f64().to_string());

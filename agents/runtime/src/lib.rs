@@ -202,7 +202,7 @@ pub fn session_config(
         (Identity::Machine(_), ZenohMode::Client) => Some(who),
         _ => None,
     };
-    set(&mut c, "access_control", access_control(cfg, trusted_hub))?;
+    set(&mut c, "access_control", access_control(cfg, trusted_hub)?)?;
     Ok(c)
 }
 
@@ -285,9 +285,13 @@ fn plain_config(
 /// tokens only on X's keys ([`Identity::grants`]); every lab certificate may subscribe and
 /// receive. `trusted_hub`: a client of its machine's hub (`rig launch`) accepts everything
 /// from it, because the hub has already checked each message against its sender.
-pub fn access_control(cfg: &RigConfig, trusted_hub: Option<&Identity>) -> serde_json::Value {
-    let prefix = format!("rig/{}", cfg.name);
-    let everyone: Vec<String> = identities(cfg).iter().map(Identity::name).collect();
+pub fn access_control(
+    cfg: &RigConfig,
+    trusted_hub: Option<&Identity>,
+) -> Result<serde_json::Value, rig_protocol::KeyError> {
+    let everything = rig_protocol::Keys::new(&cfg.name)?.all();
+    let who_all = identities(cfg);
+    let everyone: Vec<String> = who_all.iter().map(Identity::name).collect();
     let mut rules = vec![
         json!({
             "id": "listen",
@@ -307,18 +311,15 @@ pub fn access_control(cfg: &RigConfig, trusted_hub: Option<&Identity>) -> serde_
     ];
     let mut subjects = vec![json!({"id": "lab", "cert_common_names": everyone})];
     let mut policies = vec![json!({"rules": ["listen", "send"], "subjects": ["lab"]})];
-    for who in identities(cfg) {
+    for who in who_all {
         let name = who.name();
-        let g = who.grants(cfg);
-        let keys =
-            |ks: &[String]| -> Vec<String> { ks.iter().map(|k| format!("{prefix}/{k}")).collect() };
         let mut mine = Vec::new();
-        let trusted = trusted_hub == Some(&who);
-        let all = || vec![format!("{prefix}/**")];
-        let (put, query, alive) = if trusted {
-            (all(), all(), all())
+        let (put, query, alive) = if trusted_hub == Some(&who) {
+            let all = vec![everything.clone()];
+            (all.clone(), all.clone(), all)
         } else {
-            (keys(&g.put), keys(&g.query), keys(&g.alive))
+            let g = who.grants(cfg)?;
+            (g.put, g.query, g.alive)
         };
         for (kind, messages, ks) in [
             ("put", json!(["put", "delete"]), put),
@@ -344,13 +345,13 @@ pub fn access_control(cfg: &RigConfig, trusted_hub: Option<&Identity>) -> serde_
         subjects.push(json!({"id": name, "cert_common_names": [name]}));
         policies.push(json!({"rules": mine, "subjects": [name]}));
     }
-    json!({
+    Ok(json!({
         "enabled": true,
         "default_permission": "deny",
         "rules": rules,
         "subjects": subjects,
         "policies": policies,
-    })
+    }))
 }
 
 /// Declares a publisher on `key` after declaring the key expression itself, so peers map it
@@ -487,7 +488,7 @@ mod tests {
     #[test]
     fn the_access_control_denies_by_default_and_grants_each_identity_its_own_keys() {
         let mut cfg = rig_config::examples::load("parallel").unwrap();
-        let acl = access_control(&cfg, None);
+        let acl = access_control(&cfg, None).unwrap();
         assert_eq!(acl["enabled"], true);
         assert_eq!(acl["default_permission"], "deny");
         let rule = |acl: &serde_json::Value, id: &str| {
@@ -516,7 +517,7 @@ mod tests {
         assert!(rule(&acl, "put-recorder").is_none());
         // A client of its machine's hub takes everything the hub forwards.
         let hub = Identity::Machine(cfg.machines[0].name.clone());
-        let trusting = access_control(&cfg, Some(&hub));
+        let trusting = access_control(&cfg, Some(&hub)).unwrap();
         let name = hub.name();
         assert_eq!(
             rule(&trusting, &format!("put-{name}")).unwrap()["key_exprs"],
