@@ -185,7 +185,7 @@ fn build(c: &mut Collector<'_>, raw: &RawConfig) -> Option<RigConfig> {
     }
 
     let observer = observer(c, raw.observer.as_ref());
-    let zenoh = zenoh(c, raw.zenoh.as_ref());
+    let zenoh = zenoh(c, raw.zenoh.as_ref(), raw.security.is_some());
     let clock = clock(c, raw.clock.as_ref());
     let cfg = RigConfig {
         source: Default::default(),
@@ -206,7 +206,6 @@ fn build(c: &mut Collector<'_>, raw: &RawConfig) -> Option<RigConfig> {
         machines: machines?,
         ..cfg
     };
-    endpoints_match_security(c, raw, cfg.security.is_some());
     Some(cfg)
 }
 
@@ -230,30 +229,9 @@ fn security(c: &mut Collector<'_>, raw: Option<&RawSecurity>) -> Option<Security
     })
 }
 
-/// With `[security]` every endpoint is TLS (mutual TLS is what authenticates a peer); without
-/// it none is (there would be no certificate to present).
-fn endpoints_match_security(c: &mut Collector<'_>, raw: &RawConfig, secure: bool) {
-    let mut lists: Vec<(FieldPath, &[String])> = Vec::new();
-    if let Some(z) = &raw.zenoh {
-        let p = FieldPath::default().key("zenoh");
-        lists.push((p.key("listen"), &z.listen));
-        lists.push((p.key("connect"), &z.connect));
-    }
-    for (i, m) in raw.machine.iter().enumerate() {
-        let p = FieldPath::default().key("machine").index(i);
-        lists.push((p.key("listen"), &m.listen));
-        lists.push((p.key("connect"), &m.connect));
-    }
-    for (p, list) in lists {
-        for (i, e) in list.iter().enumerate() {
-            if let Err(msg) = endpoint_security(e, secure) {
-                c.push(&p.index(i), msg);
-            }
-        }
-    }
-}
-
-/// Whether endpoint `e` fits the rig's security: TLS with `[security]`, anything else without.
+/// Whether endpoint `e` fits the rig's security: with `[security]` every endpoint is TLS
+/// (mutual TLS is what authenticates a peer); without it none is (there would be no
+/// certificate to present).
 pub fn endpoint_security(e: &str, secure: bool) -> Result<(), String> {
     let tls = e.starts_with("tls/");
     match (secure, tls) {
@@ -1306,7 +1284,7 @@ fn clock(c: &mut Collector<'_>, raw: Option<&RawClock>) -> Option<ClockConfig> {
     })
 }
 
-fn zenoh(c: &mut Collector<'_>, raw: Option<&RawZenoh>) -> Option<ZenohConfig> {
+fn zenoh(c: &mut Collector<'_>, raw: Option<&RawZenoh>, secure: bool) -> Option<ZenohConfig> {
     let p = FieldPath::default().key("zenoh");
     let Some(z) = raw else {
         return Some(ZenohConfig {
@@ -1324,7 +1302,7 @@ fn zenoh(c: &mut Collector<'_>, raw: Option<&RawZenoh>) -> Option<ZenohConfig> {
             ("router", ZenohMode::Router),
         ],
     );
-    let mut ok = endpoints(c, &p, &z.listen, &z.connect);
+    let mut ok = endpoints(c, &p, &z.listen, &z.connect, secure);
     if mode == Some(ZenohMode::Client) && z.connect.is_empty() {
         c.push(
             &p.key("connect"),
@@ -1339,14 +1317,25 @@ fn zenoh(c: &mut Collector<'_>, raw: Option<&RawZenoh>) -> Option<ZenohConfig> {
     })
 }
 
-/// Checks the `listen` and `connect` endpoints of the section at `p`; whether all are good.
-fn endpoints(c: &mut Collector<'_>, p: &FieldPath, listen: &[String], connect: &[String]) -> bool {
+/// Checks the `listen` and `connect` endpoints of the section at `p` (TLS exactly when
+/// `secure`); whether all are good.
+fn endpoints(
+    c: &mut Collector<'_>,
+    p: &FieldPath,
+    listen: &[String],
+    connect: &[String],
+    secure: bool,
+) -> bool {
     let mut ok = true;
     for (field, list) in [("listen", listen), ("connect", connect)] {
         for (i, e) in list.iter().enumerate() {
             if let Err(msg) = check_endpoint(e) {
                 c.push(&p.key(field).index(i), msg);
                 ok = false;
+            } else if let Err(msg) = endpoint_security(e, secure) {
+                // Well-formed, so the rest of the file is still checked (and its other
+                // mismatches named too); the error alone refuses the file.
+                c.push(&p.key(field).index(i), msg);
             }
         }
     }
@@ -1408,7 +1397,7 @@ fn machines(c: &mut Collector<'_>, raw: &[RawMachine], cfg: &RigConfig) -> Optio
             }
             roles.push(role);
         }
-        if endpoints(c, &p, &m.listen, &m.connect) {
+        if endpoints(c, &p, &m.listen, &m.connect, cfg.security.is_some()) {
             out.push(Machine {
                 name: m.name.clone(),
                 roles,
