@@ -45,7 +45,7 @@ pub struct Tare {
     pub(crate) rest: (usize, usize),
 }
 
-/// The rest segment a run starts with: the samples `start..end`, the mean torque and
+/// The rest segment a run starts with: the samples `start..end`, the median torque and
 /// deflection over them, and the torque's noise there.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Rest {
@@ -107,8 +107,11 @@ pub fn find_rest(r: &Run, resolution: f64) -> Option<Rest> {
         start,
         end,
         window_s: r.t[end - 1] - r.t[start],
-        torque: super::stats::mean(&r.tau[start..end]),
-        deflection: super::stats::mean(&phi[start..end]),
+        // Medians: a motion that starts slowly (a smooth ramp) creeps a few encoder steps
+        // while still inside the band, and the mean takes part of that creep as the zero
+        // (a lever with a stop then read a torque step where the motion began).
+        torque: median(&r.tau[start..end]),
+        deflection: median(&phi[start..end]),
         noise: super::stats::std(&r.tau[start..end]),
     })
 }
