@@ -198,7 +198,10 @@ pub struct Data {
     pub size: f64,
 }
 
-const DURATION: f64 = 30.0;
+/// A run's length (s): 30, or DURATION_S for a stress run.
+fn duration() -> f64 {
+    env_f64("DURATION_S", 30.0)
+}
 
 /// The imposed angle and its first two derivatives at time t, from a motion's parameters.
 #[derive(Debug, Clone)]
@@ -220,7 +223,7 @@ impl Trajectory {
                     .collect();
                 let peak = (0..3000)
                     .map(|k| {
-                        let t = k as f64 * DURATION / 3000.0;
+                        let t = k as f64 * duration() / 3000.0;
                         sines
                             .iter()
                             .map(|(a, w, p)| a * (w * t + p).sin())
@@ -241,7 +244,7 @@ impl Trajectory {
                 let mut t = rng.range(2.0, 4.0);
                 let mut level = 0.0;
                 let mut sign = if rng.uniform() < 0.5 { 1.0 } else { -1.0 };
-                while t < DURATION - 2.0 {
+                while t < duration() - 2.0 {
                     let to = sign * amplitude * rng.range(0.5, 1.0);
                     let dur = rng.range(1.5, 4.0);
                     ramps.push((t, dur, level, to));
@@ -342,7 +345,7 @@ pub fn generate(c: &Case, variant: u64) -> Data {
     let traj = Trajectory::new(c.motion, amplitude, if link { 1.5 } else { 1.0 }, &mut rng);
     // The plant runs on a fine grid (10 kHz), sensors sample it at the case's rate.
     let fine = 10_000.0;
-    let n_fine = (DURATION * fine) as usize + 1;
+    let n_fine = (duration() * fine) as usize + 1;
     let k_lin = 2.0; // N·m/rad of the linear spring
     let (inertia, damping) = (0.05, 0.4);
     let inject = c.inject;
@@ -357,21 +360,25 @@ pub fn generate(c: &Case, variant: u64) -> Data {
             inertia * amplitude * w * w + damping * amplitude * w
         }
     };
-    let t_jump = size_rng.range(9.0, 21.0);
+    let t_jump = duration() * size_rng.range(0.3, 0.7);
+    // SIZE_SCALE (stress runs) scales every effect: a larger stop is an earlier one.
+    let scale = env_f64("SIZE_SCALE", 1.0);
     let size = match inject {
         None => 0.0,
-        Some(Inject::TorqueOffset) => 0.08 * peak * sign(&mut size_rng),
-        Some(Inject::TorqueStep) => 0.08 * peak * sign(&mut size_rng),
-        Some(Inject::EncoderSlip) => 0.08 * amplitude * sign(&mut size_rng),
-        Some(Inject::Backlash) => size_rng.range(0.04, 0.08) * amplitude,
-        Some(Inject::Hysteresis) => 0.3,
-        Some(Inject::StiffnessDrift) => size_rng.range(0.15, 0.3),
-        Some(Inject::TorqueLag | Inject::AngleLag) => size_rng.range(0.01, 0.03),
-        Some(Inject::HardStop) => size_rng.range(0.6, 0.75) * amplitude,
-        Some(Inject::Coulomb) => 0.06 * peak,
-        Some(Inject::Viscous) => 0.06 * peak,
-        Some(Inject::Gravity) => 0.3 * peak,
-        Some(Inject::Ripple) => 0.05 * peak,
+        Some(Inject::TorqueOffset) => scale * 0.08 * peak * sign(&mut size_rng),
+        Some(Inject::TorqueStep) => scale * 0.08 * peak * sign(&mut size_rng),
+        Some(Inject::EncoderSlip) => scale * 0.08 * amplitude * sign(&mut size_rng),
+        Some(Inject::Backlash) => scale * size_rng.range(0.04, 0.08) * amplitude,
+        Some(Inject::Hysteresis) => (scale * 0.3).min(0.9),
+        Some(Inject::StiffnessDrift) => scale * size_rng.range(0.15, 0.3),
+        Some(Inject::TorqueLag | Inject::AngleLag) => scale * size_rng.range(0.01, 0.03),
+        Some(Inject::HardStop) => {
+            (1.0 - scale * (1.0 - size_rng.range(0.6, 0.75))).max(0.1) * amplitude
+        }
+        Some(Inject::Coulomb) => scale * 0.06 * peak,
+        Some(Inject::Viscous) => scale * 0.06 * peak,
+        Some(Inject::Gravity) => scale * 0.3 * peak,
+        Some(Inject::Ripple) => scale * 0.05 * peak,
     };
     let ripple_period = amplitude / size_rng.range(3.0, 6.0);
     let ripple_phase = size_rng.range(0.0, TAU);
@@ -411,7 +418,7 @@ pub fn generate(c: &Case, variant: u64) -> Data {
             Plant::Link => inertia * a + damping * v,
         };
         let tau = match inject {
-            Some(Inject::StiffnessDrift) => tau * (1.0 + size * t / DURATION),
+            Some(Inject::StiffnessDrift) => tau * (1.0 + size * t / duration()),
             Some(Inject::HardStop) => {
                 tau + 4.0 * (peak / amplitude) * ((xs.abs() - size).max(0.0) * xs.signum())
             }
@@ -430,7 +437,7 @@ pub fn generate(c: &Case, variant: u64) -> Data {
         let w = u - i as f64;
         v[i] * (1.0 - w) + v[i + 1] * w
     };
-    let n = (DURATION * c.rate_hz) as usize;
+    let n = (duration() * c.rate_hz) as usize;
     let resolution = TAU / 16384.0 / if link { 1.0 } else { 4.0 };
     let mut out = Data {
         t: Vec::with_capacity(n),
@@ -454,7 +461,7 @@ pub fn generate(c: &Case, variant: u64) -> Data {
             Some(Inject::EncoderSlip) if t >= t_jump => x += size,
             _ => {}
         }
-        tau += c.noise * peak * rng.gauss();
+        tau += env_f64("NOISE_SCALE", 1.0) * c.noise * peak * rng.gauss();
         x = (x / resolution).round() * resolution;
         out.t.push(t);
         out.x.push(x);
@@ -465,4 +472,11 @@ pub fn generate(c: &Case, variant: u64) -> Data {
 
 fn sign(rng: &mut Rng) -> f64 {
     if rng.uniform() < 0.5 { -1.0 } else { 1.0 }
+}
+
+fn env_f64(name: &str, default: f64) -> f64 {
+    std::env::var(name)
+        .ok()
+        .and_then(|s| s.parse().ok())
+        .unwrap_or(default)
 }
