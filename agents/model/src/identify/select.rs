@@ -21,8 +21,8 @@
 use super::effects::{Effect, Place, Shaped};
 use super::model::{Fitted, Signals, Transform, fit, fit_restoring_on, refit_restoring};
 use super::rows::{Problem, Role};
-use super::stats::effective_samples;
 use super::stats::{Bound, bounded_least_squares, combine};
+use super::stats::{effective_samples, mean, std};
 use super::{Declared, IdentifyError, Options, logspace};
 use crate::hysteresis::RestoringCurve;
 
@@ -512,9 +512,7 @@ fn rank(p: &Problem, validate: &[usize], paying: Vec<Paying>) -> Option<Paying> 
             .collect();
         let segs: Vec<&[f64]> = stretches.iter().map(|&(a, b)| &d[a..b]).collect();
         let n_eff = effective_samples(&segs).max(1.0);
-        let mean = d.iter().sum::<f64>() / d.len() as f64;
-        let sd = (d.iter().map(|v| (v - mean).powi(2)).sum::<f64>() / d.len() as f64).sqrt();
-        mean <= 2.0 * sd / n_eff.sqrt()
+        mean(&d) <= 2.0 * std(&d) / n_eff.sqrt()
     };
     paying
         .into_iter()
@@ -864,8 +862,9 @@ fn loaded_between_stops(
     if between.len() < 3 {
         return k > 0.0;
     }
-    let mean = between.iter().map(|&i| b[i]).sum::<f64>() / between.len() as f64;
-    let sxx: f64 = between.iter().map(|&i| (b[i] - mean).powi(2)).sum();
+    // Σ(b − b̄)² over the rows between the onsets.
+    let inside: Vec<f64> = between.iter().map(|&i| b[i]).collect();
+    let sxx = std(&inside).powi(2) * inside.len() as f64;
     let (rss, n_eff) = rss_and_neff(p, f, rows);
     let n = rows.len() as f64;
     if !(sxx > 0.0 && n_eff > 0.0) {
