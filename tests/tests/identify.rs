@@ -333,6 +333,34 @@ fn linear_model_finds_the_levers_geometric_stiffness() {
     assert!(na.iter().any(|e| e["name"] == "geometric_stiffness"), "{v}");
 }
 
+#[test]
+fn with_a_config_the_restoring_loop_follows_the_levers_curve_and_holds_its_geometry() {
+    // The bench config's table is fitted with the lever's envelope (`envelope = "lever"`):
+    // identify fits its loop the same way, so the lever's curve is no residual to name, and
+    // the loop's k is the joint's stiffness at rest at the 9 mm pivot, G(0)²·k_α = 2.711
+    // N·m/rad (paper B's lever, MODEL.md §1), not a secant of the ±0.2 rad stroke.
+    let cfg = workspace("rig-config/examples/bench.toml");
+    let v = identify(
+        &lever_bench("r-geo", false, 0.2, ""),
+        &["--config", cfg.to_str().unwrap()],
+    );
+    assert_eq!(v["envelope"], "lever", "{v}");
+    adds_nothing(&v);
+    let na = v["not_applicable"].as_array().unwrap();
+    let geo = na
+        .iter()
+        .find(|e| e["name"] == "geometric_stiffness")
+        .unwrap();
+    assert!(geo["why"].as_str().unwrap().contains("envelope"), "{geo}");
+    let k = v["base"]["after"]["stiffness_nm_per_rad"].as_f64().unwrap();
+    assert!((k / 2.7114 - 1.0).abs() < 0.02, "k {k}");
+    // Without the config: paper B's straight lines, whose k is a secant of the stroke.
+    let v = identify(&lever_bench("r-geo2", false, 0.2, ""), &[]);
+    assert_eq!(v["envelope"], "linear", "{v}");
+    let k = v["base"]["after"]["stiffness_nm_per_rad"].as_f64().unwrap();
+    assert!((k / 2.7114 - 1.0).abs() > 0.05, "k {k}");
+}
+
 // Declared: paper A's link equation; plant: the AWAS.
 
 fn link_parameters_match_the_config(v: &Value) {

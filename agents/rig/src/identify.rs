@@ -6,6 +6,7 @@
 use std::path::{Path, PathBuf};
 
 use clap::ValueEnum;
+use rig_model::hysteresis::Envelope;
 use rig_model::identify::{
     Declared, Effect, Holdout, Identified, Options, Place, Run, Tare, identify,
 };
@@ -49,7 +50,10 @@ pub struct Args {
     /// The declared model to start from
     #[arg(long, value_enum, default_value = "restoring")]
     model: ModelArg,
-    /// Rig config: a lever joint in it makes geometric_stiffness a candidate
+    /// Rig config: the joint's lever (--joint; else the first lever joint) makes
+    /// geometric_stiffness a candidate, and the restoring model's loop is fitted with the
+    /// envelope of the config's table (`envelope = "lever"`: the lever's curve), as the
+    /// estimator will run it. --apply's config serves when this is not given
     #[arg(long, value_name = "FILE")]
     config: Option<PathBuf>,
     /// Joint of an MCAP recording to identify (default: the first)
@@ -120,15 +124,23 @@ pub fn run(a: &Args) -> Result<(), CliError> {
         )));
     }
     let map = ColumnMap::parse(a.data.columns.as_deref())?;
-    let lever = match &a.config {
+    // The lever and the loop's envelope of the joint identified (--joint; else the config's
+    // first lever joint), from --config or the config --apply writes to.
+    let (lever, envelope) = match a.config.as_ref().or(a.apply.as_ref()) {
         Some(path) => {
             let cfg = rig_config::load(path)?;
-            cfg.joints.iter().find_map(|j| match j.kind {
-                rig_config::JointKind::Lever { vsa, .. } => Some(vsa),
-                _ => None,
-            })
+            cfg.joints
+                .iter()
+                .filter(|j| a.joint.as_ref().is_none_or(|name| &j.name == name))
+                .find_map(|j| match &j.kind {
+                    rig_config::JointKind::Lever { vsa, restoring, .. } => {
+                        Some((Some(*vsa), restoring.envelope()))
+                    }
+                    _ => None,
+                })
+                .unwrap_or((None, Envelope::Linear))
         }
-        None => None,
+        None => (None, Envelope::Linear),
     };
     let load = |files: &[PathBuf]| -> Result<(Vec<Run>, Vec<Sampling>), CliError> {
         let mut runs = Vec::new();
@@ -167,6 +179,7 @@ pub fn run(a: &Args) -> Result<(), CliError> {
             ModelArg::Link => Declared::Link,
         },
         lever,
+        envelope,
         min_gain: a.min_gain,
         rate_window: a.rate_window_ms.map(|w| w * 1e-3),
         tare: !a.no_tare,
@@ -185,8 +198,15 @@ pub fn run(a: &Args) -> Result<(), CliError> {
     })?;
     pb.finish_and_clear();
 
-    let notes = notes(&res, &fit_runs, &held_runs);
-    let report = report_json(a, &res, &sampling, &notes, held_runs.is_empty());
+    let mut notes = notes(&res, &fit_runs, &held_runs);
+    let curved = matches!(envelope, Envelope::Lever(_)) && a.model == ModelArg::Restoring;
+    if curved {
+        notes.push("the restoring loop's envelope follows the lever's curve, as the config's table does (envelope = \"lever\"): its k is the stiffness at rest".into());
+    }
+    let mut report = report_json(a, &res, &sampling, &notes, held_runs.is_empty());
+    if a.model == ModelArg::Restoring {
+        report["envelope"] = json!(if curved { "lever" } else { "linear" });
+    }
     std::fs::write(
         &a.report,
         serde_json::to_string_pretty(&report).unwrap_or_default(),

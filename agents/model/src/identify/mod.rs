@@ -28,6 +28,7 @@ pub mod signals;
 mod states;
 pub mod stats;
 
+use crate::hysteresis::Envelope;
 use crate::lever::LeverVsa;
 pub use effects::{Effect, Place, Shaped};
 use model::{Transform, base_params, fit, fit_restoring_on};
@@ -92,8 +93,13 @@ pub struct Run {
 #[derive(Debug, Clone, PartialEq)]
 pub struct Options {
     pub model: Declared,
-    /// The lever joint, when a config names one: enables `geometric_stiffness`.
+    /// The lever joint, when a config names one: enables `geometric_stiffness` (on the linear
+    /// model; the restoring model with the lever's envelope holds it already).
     pub lever: Option<LeverVsa>,
+    /// The envelope lines of the declared restoring model: the shape the config's table is
+    /// fitted with (`rig calibrate` writes the lever's), so that what is found is found beside
+    /// the loop the estimator will run. Straight lines (paper B) by default.
+    pub envelope: Envelope,
     /// Direction dead band [rad]; `None`: three quantisation steps of the angle.
     pub dead_band: Option<f64>,
     /// Time blocks per run for interleaving.
@@ -125,6 +131,7 @@ impl Default for Options {
         Self {
             model: Declared::Restoring,
             lever: None,
+            envelope: Envelope::Linear,
             dead_band: None,
             blocks: 12,
             min_gain: 0.05,

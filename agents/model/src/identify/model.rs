@@ -317,6 +317,7 @@ pub(crate) fn fit_restoring_on(
     let fo = FitOptions {
         dead_band: p.dead_band,
         d_tolerance: 1e-4,
+        envelope: p.envelope,
         ..FitOptions::default()
     };
     fit_restoring(&samples, &fo)

@@ -2,7 +2,7 @@
 //! train or validate; held out). The tare takes each run's zeros from the rest it starts with.
 
 use super::{Declared, Holdout, IdentifyError, Options, Run, signals};
-use crate::hysteresis::RestoringCurve;
+use crate::hysteresis::{Envelope, RestoringCurve};
 use crate::lever::LeverVsa;
 
 /// The role of a row.
@@ -198,6 +198,8 @@ pub(crate) struct Problem {
     pub role: Vec<Role>,
     pub model: Declared,
     pub lever: Option<LeverVsa>,
+    /// The declared restoring model's envelope lines.
+    pub envelope: Envelope,
     pub dead_band: f64,
     /// Quantisation step of the angle [rad] (0 when not quantised).
     pub resolution: f64,
@@ -269,6 +271,7 @@ impl Problem {
             role,
             model: opts.model,
             lever: opts.lever,
+            envelope: opts.envelope,
             dead_band,
             resolution: if res.is_finite() { res } else { 0.0 },
             rate_window: 0.0,

@@ -24,7 +24,7 @@ use super::rows::{Problem, Role};
 use super::stats::{Bound, bounded_least_squares, combine};
 use super::stats::{effective_samples, mean, std};
 use super::{Declared, IdentifyError, Options, logspace};
-use crate::hysteresis::RestoringCurve;
+use crate::hysteresis::{Envelope, RestoringCurve};
 
 /// The candidates with their grids of shapes, and those not applicable with why.
 pub(crate) type Candidates = (Vec<(Effect, Vec<Shaped>)>, Vec<(Effect, &'static str)>);
@@ -85,6 +85,12 @@ pub(crate) fn candidates(p: &Problem, opts: &Options, dt: f64, duration: f64) ->
                     .iter()
                     .flat_map(|&u| down.iter().map(move |&d| Shaped::stops(u, d)))
                     .collect())
+            }
+            (Effect::GeometricStiffness, true)
+                if opts.model == Declared::Restoring
+                    && matches!(opts.envelope, Envelope::Lever(_)) =>
+            {
+                Err("the declared loop's envelope follows the lever's curve already")
             }
             (Effect::GeometricStiffness, true) if opts.lever.is_none() => {
                 Err("needs a lever joint (--config) to know G(φ, d)")

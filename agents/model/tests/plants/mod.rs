@@ -200,7 +200,8 @@ pub struct Data {
 
 /// A run's length (s): 30, or DURATION_S for a stress run.
 fn duration() -> f64 {
-    env_f64("DURATION_S", 30.0)
+    static DURATION: std::sync::OnceLock<f64> = std::sync::OnceLock::new();
+    *DURATION.get_or_init(|| env_f64("DURATION_S", 30.0))
 }
 
 /// The imposed angle and its first two derivatives at time t, from a motion's parameters.
@@ -298,9 +299,16 @@ impl Trajectory {
     }
 }
 
+/// The lever plant's pivot position [m] (from its closest point to the main joint, 9.6 mm).
+pub const LEVER_PIVOT_M: f64 = 0.009;
+
 /// Paper B's lever (MODEL.md §1) at d_a: exact static torque of the spring through the lever.
-fn lever_torque(phi: f64) -> f64 {
-    let (p, d_a, k_alpha) = (0.0315, 0.0096 + 0.009, 978.8e-3 / 43f64.to_radians());
+pub fn lever_torque(phi: f64) -> f64 {
+    let (p, d_a, k_alpha) = (
+        0.0315,
+        0.0096 + LEVER_PIVOT_M,
+        978.8e-3 / 43f64.to_radians(),
+    );
     let beta = (p * phi.sin()).atan2(p * phi.cos() - d_a);
     let alpha = beta - phi;
     let l = ((p * phi.cos() - d_a).powi(2) + (p * phi.sin()).powi(2)).sqrt();
