@@ -353,34 +353,58 @@ fn one_case() {
     }
 }
 
+/// A run of a two-tone deflection x = a₁·sin(w₁·t + φ) + a₂·sin(w₂·t + 2φ) (φ: `phase`), `n`
+/// samples `dt` apart, read by an encoder of 0.1 mrad counts; the torque is `torque(x)` plus
+/// uniform noise of total width `noise` (its own generator, seeded by `seed` and the phase).
+fn two_tone(
+    name: &str,
+    phase: f64,
+    tones: [(f64, f64); 2],
+    (n, dt): (usize, f64),
+    (seed, noise): (u64, f64),
+    d: Option<f64>,
+    torque: impl Fn(f64) -> f64,
+) -> Run {
+    let mut seed = seed ^ phase.to_bits();
+    let mut noise = move || {
+        seed = seed
+            .wrapping_mul(6364136223846793005)
+            .wrapping_add(1442695040888963407);
+        ((seed >> 11) as f64 / (1u64 << 53) as f64 - 0.5) * noise
+    };
+    let [(a1, w1), (a2, w2)] = tones;
+    let (mut t, mut tau, mut phi) = (vec![], vec![], vec![]);
+    for i in 0..n {
+        let s = i as f64 * dt;
+        let x = a1 * (w1 * s + phase).sin() + a2 * (w2 * s + 2.0 * phase).sin();
+        t.push(s);
+        phi.push((x / 1e-4).round() * 1e-4);
+        tau.push(torque(x) + noise());
+    }
+    Run {
+        name: format!("{name}-{phase}"),
+        t,
+        tau,
+        phi: Some(phi),
+        d: d.map(|d| vec![d; n]),
+        q: None,
+    }
+}
+
 /// A linear spring that stiffens past +60 mrad only (a stop on the wound side, none on the
 /// other), written here without the library's effect code: 1 % torque noise, an encoder of
 /// 0.1 mrad counts.
 fn spring_with_one_stop(phase: f64) -> Run {
     let (k, at, rate) = (50.0, 0.06, 400.0);
-    let mut seed = 0x9E37_79B9_7F4A_7C15_u64 ^ phase.to_bits();
-    let mut noise = move || {
-        seed = seed
-            .wrapping_mul(6364136223846793005)
-            .wrapping_add(1442695040888963407);
-        ((seed >> 11) as f64 / (1u64 << 53) as f64 - 0.5) * 0.2
-    };
-    let (mut t, mut tau, mut phi) = (vec![], vec![], vec![]);
-    for i in 0..6000 {
-        let s = i as f64 * 0.002;
-        let x = 0.06 * (0.9 * s + phase).sin() + 0.035 * (2.3 * s + 2.0 * phase).sin();
-        t.push(s);
-        phi.push((x / 1e-4).round() * 1e-4);
-        tau.push(k * x + rate * (x - at).max(0.0) + noise());
-    }
-    Run {
-        name: format!("stop-{phase}"),
-        t,
-        tau,
-        phi: Some(phi),
-        d: None,
-        q: None,
-    }
+    two_tone(
+        "stop",
+        phase,
+        [(0.06, 0.9), (0.035, 2.3)],
+        (6000, 0.002),
+        (0x9E37_79B9_7F4A_7C15, 0.2),
+        None,
+        |x| k * x + rate * (x - at).max(0.0),
+    )
 }
 
 #[test]
@@ -417,30 +441,15 @@ fn a_stop_on_one_side_only_is_named_with_its_onset_and_nothing_stiffens_the_othe
 /// counts, and the pivot column.
 fn bare_lever(phase: f64) -> Run {
     let peak = plants::lever_torque(0.13);
-    let mut seed = 0xD1B5_4A32_D192_ED03_u64 ^ phase.to_bits();
-    let mut noise = move || {
-        seed = seed
-            .wrapping_mul(6364136223846793005)
-            .wrapping_add(1442695040888963407);
-        ((seed >> 11) as f64 / (1u64 << 53) as f64 - 0.5) * 0.004 * peak * 12f64.sqrt()
-    };
-    let (mut t, mut tau, mut phi) = (vec![], vec![], vec![]);
-    for i in 0..4000 {
-        let s = i as f64 * 0.005;
-        let x = 0.09 * (0.7 * s + phase).sin() + 0.04 * (1.9 * s + 2.0 * phase).sin();
-        t.push(s);
-        phi.push((x / 1e-4).round() * 1e-4);
-        tau.push(plants::lever_torque(x) + noise());
-    }
-    let n = t.len();
-    Run {
-        name: format!("lever-{phase}"),
-        t,
-        tau,
-        phi: Some(phi),
-        d: Some(vec![plants::LEVER_PIVOT_M; n]),
-        q: None,
-    }
+    two_tone(
+        "lever",
+        phase,
+        [(0.09, 0.7), (0.04, 1.9)],
+        (4000, 0.005),
+        (0xD1B5_4A32_D192_ED03, 0.004 * peak * 12f64.sqrt()),
+        Some(plants::LEVER_PIVOT_M),
+        plants::lever_torque,
+    )
 }
 
 #[test]
