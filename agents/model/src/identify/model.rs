@@ -318,6 +318,11 @@ pub(crate) fn fit_restoring_on(
         dead_band: p.dead_band,
         d_tolerance: 1e-4,
         envelope: p.envelope,
+        // A refit after a small change starts from the loop it replaces as well.
+        start: p
+            .restoring
+            .as_ref()
+            .map(|c| c.at(samples.first().map_or(0.0, |s| s.d))),
         ..FitOptions::default()
     };
     fit_restoring(&samples, &fo)
