@@ -233,31 +233,35 @@ fn fit_group(runs: &[&[FitSample]], opts: &FitOptions) -> Result<GroupFit, FitEr
         tau,
         theta: DVector::zeros(4),
     };
-    let mut best = (f64::INFINITY, DVector::zeros(4));
+    // The starts: a grid over n and where the transition meets the other line, and the loop
+    // a refit replaces; Levenberg–Marquardt goes on from whichever replays closest.
+    let mut starts: Vec<DVector<f64>> = Vec::new();
     for &n in &[0.3, 0.5, 0.8, 1.0, 1.5] {
         for &frac in &[0.01, 0.03, 0.1, 0.3] {
             let u0: f64 = frac * span;
             let a_s = (2.0 * h0 + k0 * u0) / u0.powf(n);
-            let theta = DVector::from_vec(vec![k0.ln(), h0.ln(), a_s.ln(), f64::ln(n)]);
-            problem.set_params(&theta);
-            let sse = problem
-                .residuals()
-                .map_or(f64::INFINITY, |r| r.norm_squared());
-            if sse < best.0 {
-                best = (sse, theta);
-            }
+            starts.push(DVector::from_vec(vec![
+                k0.ln(),
+                h0.ln(),
+                a_s.ln(),
+                f64::ln(n),
+            ]));
         }
     }
     if let Some(p) = opts.start {
         let theta = DVector::from_vec(vec![p.k.ln(), p.h.ln(), p.a_s.ln(), p.n.ln()]);
         if theta.iter().all(|v| v.is_finite()) {
-            problem.set_params(&theta);
-            let sse = problem
-                .residuals()
-                .map_or(f64::INFINITY, |r| r.norm_squared());
-            if sse < best.0 {
-                best = (sse, theta);
-            }
+            starts.push(theta);
+        }
+    }
+    let mut best = (f64::INFINITY, DVector::zeros(4));
+    for theta in starts {
+        problem.set_params(&theta);
+        let sse = problem
+            .residuals()
+            .map_or(f64::INFINITY, |r| r.norm_squared());
+        if sse < best.0 {
+            best = (sse, theta);
         }
     }
     problem.set_params(&best.1);
