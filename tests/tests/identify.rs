@@ -354,6 +354,26 @@ fn with_a_config_the_restoring_loop_follows_the_levers_curve_and_holds_its_geome
     assert!(geo["why"].as_str().unwrap().contains("envelope"), "{geo}");
     let k = v["base"]["after"]["stiffness_nm_per_rad"].as_f64().unwrap();
     assert!((k / 2.7114 - 1.0).abs() < 0.02, "k {k}");
+    // A joint the config does not have is named, with the ones it has.
+    let o = Command::new(bin("rig"))
+        .args([
+            "identify",
+            "--joint",
+            "j9",
+            "--config",
+            cfg.to_str().unwrap(),
+            "--data",
+        ])
+        .arg(lever_bench("r-geo", false, 0.2, ""))
+        .arg("--report")
+        .arg(scratch("r-geo-j9.json"))
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(
+        !o.status.success() && err.contains("--joint j9") && err.contains("j1"),
+        "{err}"
+    );
     // Without the config: paper B's straight lines, whose k is a secant of the stroke.
     let v = identify(&lever_bench("r-geo2", false, 0.2, ""), &[]);
     assert_eq!(v["envelope"], "linear", "{v}");

@@ -129,6 +129,16 @@ pub fn run(a: &Args) -> Result<(), CliError> {
     let (lever, envelope) = match a.config.as_ref().or(a.apply.as_ref()) {
         Some(path) => {
             let cfg = rig_config::load(path)?;
+            if let Some(name) = &a.joint
+                && !cfg.joints.iter().any(|j| &j.name == name)
+            {
+                let names: Vec<&str> = cfg.joints.iter().map(|j| j.name.as_str()).collect();
+                return Err(CliError::Invalid(format!(
+                    "--joint {name}: {} has no joint of that name (its joints: {})",
+                    path.display(),
+                    names.join(", ")
+                )));
+            }
             cfg.joints
                 .iter()
                 .filter(|j| a.joint.as_ref().is_none_or(|name| &j.name == name))
