@@ -273,6 +273,9 @@ pub(crate) fn forward(
                 for _ in 0..4 {
                     q.restoring = Some(refit_restoring(&q, &trial, &rows.fit)?);
                 }
+                if cand.effect != Effect::Offset {
+                    q.restoring = Some(profile_friction(&q, &sig, &chosen, &cand, &rows.fit)?);
+                }
                 let v = validation_error(&q, &trial, rows)?;
                 refitted = q;
                 (&refitted, v.min(val))
@@ -285,7 +288,7 @@ pub(crate) fn forward(
                 // be trusted. Jump times every 1/12 of the run, the times the residual points
                 // at and a constant offset are each settled for one round, the best one to the
                 // end, and its time then found again from what the settled loop leaves.
-                let mut best: Option<(Shaped, f64)> = None;
+                let mut tried_slips: Vec<(Shaped, f64)> = Vec::new();
                 let slips: Vec<&Shaped> =
                     grid.iter().filter(|c| c.on == Place::Deflection).collect();
                 let evenly = slips.iter().take_while(|c| c.shape.is_finite()).count();
@@ -294,20 +297,25 @@ pub(crate) fn forward(
                     .enumerate()
                     .filter(|(i, _)| *i >= evenly || i % 2 == 1)
                 {
-                    let Ok((_, c, v)) = settle_slip(p, &chosen, c, rows, 1) else {
-                        continue;
-                    };
-                    if best.is_none_or(|b| v < b.1) {
-                        best = Some((c, v));
+                    if let Ok((_, c, v)) = settle_slip(p, &chosen, c, rows, 1) {
+                        tried_slips.push((c, v));
                     }
                 }
-                let settled = best.and_then(|(c, _)| {
-                    let searched = Shaped {
-                        size: f64::NAN,
-                        ..c
-                    };
-                    settle_slip(p, &chosen, &searched, rows, 5).ok()
-                });
+                // The three best after one round are settled to the end (the one-round
+                // ranking is read against the bent loop; settling from a wrong time can also
+                // bend the loop until it is no spring): the best that settles.
+                tried_slips.sort_by(|a, b| a.1.total_cmp(&b.1));
+                let settled = tried_slips
+                    .iter()
+                    .take(3)
+                    .filter_map(|(c, _)| {
+                        let searched = Shaped {
+                            size: f64::NAN,
+                            ..*c
+                        };
+                        settle_slip(p, &chosen, &searched, rows, 5).ok()
+                    })
+                    .min_by(|a, b| a.2.total_cmp(&b.2));
                 let Some((mut q, mut c, mut v)) = settled else {
                     per_effect.push((*e, f64::NEG_INFINITY, f64::NEG_INFINITY));
                     continue;
@@ -617,6 +625,65 @@ fn friction_seeded_loop(
     fit_restoring_on(p, rows, &target, Transform::of(chosen))
 }
 
+/// The loop for friction `cand` (one column) beside the restoring model, where the fit error
+/// with the loop refitted for a given friction is least: golden sections (ten steps) of its
+/// coefficient between 0 and twice what alternating loop and coefficient reached. Both the
+/// loop's height and friction dissipate, and alternating stalls with the loop holding part of
+/// the friction (the same stall as an encoder slip's, [`profile_slip`]).
+fn profile_friction(
+    q: &Problem,
+    sig: &Signals,
+    chosen: &[Shaped],
+    cand: &Shaped,
+    rows: &[usize],
+) -> Result<RestoringCurve, IdentifyError> {
+    let mut trial = chosen.to_vec();
+    trial.push(*cand);
+    let f = fit(&q.signals(sig_transform(q, &trial)), &trial, &q.tau, rows)
+        .ok_or(IdentifyError::Solve)?;
+    let reached = f.part(trial.len()).first().copied().unwrap_or(0.0);
+    let current = q.restoring.clone().ok_or(IdentifyError::Solve)?;
+    let Some((col, _)) = cand.columns(sig).into_iter().next() else {
+        return Ok(current);
+    };
+    if reached.is_nan() || reached <= 0.0 {
+        return Ok(current);
+    }
+    let tr = sig_transform(q, chosen);
+    let at = |b: f64| -> Result<(RestoringCurve, f64), IdentifyError> {
+        let mut qb = q.clone();
+        qb.tau = q.tau.iter().zip(&col).map(|(t, c)| t - b * c).collect();
+        qb.restoring = Some(refit_restoring(&qb, chosen, rows)?);
+        let e = fit(&qb.signals(tr), chosen, &qb.tau, rows)
+            .ok_or(IdentifyError::Solve)?
+            .error_on(&qb.tau, rows);
+        Ok((qb.restoring.take().ok_or(IdentifyError::Solve)?, e))
+    };
+    let golden = 0.5 * (5f64.sqrt() - 1.0);
+    let (mut a, mut b) = (0.0, 2.0 * reached);
+    let mut best = at(reached)?;
+    let mut c = b - golden * (b - a);
+    let mut d = a + golden * (b - a);
+    let (mut fc, mut fd) = (at(c)?, at(d)?);
+    for _ in 0..10 {
+        if fc.1 < fd.1 {
+            (b, d, fd) = (d, c, fc);
+            c = b - golden * (b - a);
+            fc = at(c)?;
+        } else {
+            (a, c, fc) = (c, d, fd);
+            d = a + golden * (b - a);
+            fd = at(d)?;
+        }
+        for f in [&fc, &fd] {
+            if f.1 < best.1 {
+                best = f.clone();
+            }
+        }
+    }
+    Ok(best.0)
+}
+
 /// An encoder slip `cand` (its jump time) on the restoring model: δ from the column
 /// linearised through the loop's slope, then the loop replayed on the corrected input and
 /// refitted, δ corrected again, for at most `rounds` or until it settles. Returns the problem
@@ -658,6 +725,9 @@ fn settle_slip(
             break;
         }
     }
+    if rounds > 1 && delta != 0.0 {
+        (q, delta) = profile_slip(q, chosen, cand, rows, delta)?;
+    }
     let slip = Shaped {
         size: delta,
         ..*cand
@@ -666,6 +736,53 @@ fn settle_slip(
     trial.push(slip);
     let v = validation_error(&q, &trial, rows)?;
     Ok((q, slip, v))
+}
+
+/// The slip's size where the fit error with the loop refitted for it is least, searched
+/// (golden sections, ten steps) between half and twice the size `delta` that alternating slip
+/// and loop settled on. Alternating stalls short of the slip: the loop's own shape holds part
+/// of it (a stiffer, taller loop), and each round moves both by a fraction of what is left.
+fn profile_slip(
+    q: Problem,
+    chosen: &[Shaped],
+    cand: &Shaped,
+    rows: &Rows,
+    delta: f64,
+) -> Result<(Problem, f64), IdentifyError> {
+    let at = |q: &Problem, size: f64| -> Result<(Problem, f64), IdentifyError> {
+        let mut trial = chosen.to_vec();
+        trial.push(Shaped { size, ..*cand });
+        let mut q = q.clone();
+        q.restoring = Some(refit_restoring(&q, &trial, &rows.fit)?);
+        let e = fit(&q.signals(Transform::of(&trial)), &trial, &q.tau, &rows.fit)
+            .ok_or(IdentifyError::Solve)?
+            .error_on(&q.tau, &rows.fit);
+        Ok((q, e))
+    };
+    let golden = 0.5 * (5f64.sqrt() - 1.0);
+    let (mut a, mut b) = (0.5 * delta, 2.0 * delta);
+    let mut best = (q.clone(), delta, at(&q, delta)?.1);
+    let mut c = b - golden * (b - a);
+    let mut d = a + golden * (b - a);
+    let mut fc = at(&q, c)?;
+    let mut fd = at(&q, d)?;
+    for _ in 0..10 {
+        if fc.1 < fd.1 {
+            (b, d, fd) = (d, c, fc);
+            c = b - golden * (b - a);
+            fc = at(&q, c)?;
+        } else {
+            (a, c, fc) = (c, d, fd);
+            d = a + golden * (b - a);
+            fd = at(&q, d)?;
+        }
+        for (x, f) in [(c, &fc), (d, &fd)] {
+            if f.1 < best.2 {
+                best = (f.0.clone(), x, f.1);
+            }
+        }
+    }
+    Ok((best.0, best.1))
 }
 
 /// The validation RMSE of `trial` fitted on the train blocks.

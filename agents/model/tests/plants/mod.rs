@@ -343,6 +343,13 @@ impl BoucWen {
     }
 }
 
+/// The rate viscous friction is sized at (b·rate = the effect's size): a 0.5 Hz swing of the
+/// plant's amplitude, its rms rate [rad/s].
+pub fn viscous_rate_scale(plant: Plant) -> f64 {
+    let amplitude = if plant == Plant::Link { 1.0 } else { 0.06 };
+    amplitude * TAU * 0.5 / 2f64.sqrt()
+}
+
 /// Generates one run of a case. `variant` changes the motion's random draw (0 for the fit
 /// run, 1 for the held-out run) but not the plant or the effect's size.
 pub fn generate(c: &Case, variant: u64) -> Data {
@@ -391,8 +398,7 @@ pub fn generate(c: &Case, variant: u64) -> Data {
     let ripple_period = amplitude / size_rng.range(3.0, 6.0);
     let ripple_phase = size_rng.range(0.0, TAU);
     let q0 = size_rng.range(-0.5, 0.5);
-    // The rate scale for viscous friction, b·rate_ref = size: a 0.5 Hz swing's rms rate.
-    let rate_rms = amplitude * TAU * 0.5 / 2f64.sqrt();
+    let rate_rms = viscous_rate_scale(c.plant);
     let mut bw = BoucWen::new(0.15 * amplitude);
     let mut bw_prev_x = 0.0;
     let mut tau_fine = Vec::with_capacity(n_fine);
