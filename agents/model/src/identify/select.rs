@@ -650,38 +650,54 @@ fn profile_friction(
         return Ok(current);
     }
     let tr = sig_transform(q, chosen);
-    let at = |b: f64| -> Result<(RestoringCurve, f64), IdentifyError> {
+    let at = |b: f64| -> Option<(RestoringCurve, f64)> {
         let mut qb = q.clone();
         qb.tau = q.tau.iter().zip(&col).map(|(t, c)| t - b * c).collect();
-        qb.restoring = Some(refit_restoring(&qb, chosen, rows)?);
-        let e = fit(&qb.signals(tr), chosen, &qb.tau, rows)
-            .ok_or(IdentifyError::Solve)?
-            .error_on(&qb.tau, rows);
-        Ok((qb.restoring.take().ok_or(IdentifyError::Solve)?, e))
+        let curve = refit_restoring(&qb, chosen, rows).ok()?;
+        qb.restoring = Some(curve.clone());
+        let e = fit(&qb.signals(tr), chosen, &qb.tau, rows)?.error_on(&qb.tau, rows);
+        Some((curve, e))
     };
+    let Some(start) = at(reached) else {
+        return Ok(current);
+    };
+    Ok(golden_section((0.0, 2.0 * reached), (reached, start), at).1)
+}
+
+/// The least of `f` on [lo, hi] by golden sections (ten steps), or `start` (a point already
+/// evaluated) where nothing beats it. `f` gives what it computed and the error there, `None`
+/// where it cannot be evaluated (taken as no better).
+fn golden_section<T: Clone>(
+    (mut a, mut b): (f64, f64),
+    start: (f64, (T, f64)),
+    mut f: impl FnMut(f64) -> Option<(T, f64)>,
+) -> (f64, T) {
     let golden = 0.5 * (5f64.sqrt() - 1.0);
-    let (mut a, mut b) = (0.0, 2.0 * reached);
-    let mut best = at(reached)?;
-    let mut c = b - golden * (b - a);
-    let mut d = a + golden * (b - a);
-    let (mut fc, mut fd) = (at(c)?, at(d)?);
+    let (mut best_x, mut best) = start;
+    let mut at = |x: f64| f(x).map_or((None, f64::INFINITY), |(v, e)| (Some(v), e));
+    let (mut c, mut d) = (b - golden * (b - a), a + golden * (b - a));
+    let (mut fc, mut fd) = (at(c), at(d));
     for _ in 0..10 {
         if fc.1 < fd.1 {
-            (b, d, fd) = (d, c, fc);
+            (b, d) = (d, c);
+            fd = fc;
             c = b - golden * (b - a);
-            fc = at(c)?;
+            fc = at(c);
         } else {
-            (a, c, fc) = (c, d, fd);
+            (a, c) = (c, d);
+            fc = fd;
             d = a + golden * (b - a);
-            fd = at(d)?;
+            fd = at(d);
         }
-        for f in [&fc, &fd] {
-            if f.1 < best.1 {
-                best = f.clone();
+        for (x, (v, e)) in [(c, &fc), (d, &fd)] {
+            if let Some(v) = v
+                && *e < best.1
+            {
+                (best_x, best) = (x, (v.clone(), *e));
             }
         }
     }
-    Ok(best.0)
+    (best_x, best.0)
 }
 
 /// An encoder slip `cand` (its jump time) on the restoring model: δ from the column
@@ -726,7 +742,7 @@ fn settle_slip(
         }
     }
     if rounds > 1 && delta != 0.0 {
-        (q, delta) = profile_slip(q, chosen, cand, rows, delta)?;
+        (q, delta) = profile_slip(q, chosen, cand, rows, delta);
     }
     let slip = Shaped {
         size: delta,
@@ -748,41 +764,21 @@ fn profile_slip(
     cand: &Shaped,
     rows: &Rows,
     delta: f64,
-) -> Result<(Problem, f64), IdentifyError> {
-    let at = |q: &Problem, size: f64| -> Result<(Problem, f64), IdentifyError> {
+) -> (Problem, f64) {
+    let at = |size: f64| -> Option<(Problem, f64)> {
         let mut trial = chosen.to_vec();
         trial.push(Shaped { size, ..*cand });
         let mut q = q.clone();
-        q.restoring = Some(refit_restoring(&q, &trial, &rows.fit)?);
-        let e = fit(&q.signals(Transform::of(&trial)), &trial, &q.tau, &rows.fit)
-            .ok_or(IdentifyError::Solve)?
+        q.restoring = Some(refit_restoring(&q, &trial, &rows.fit).ok()?);
+        let e = fit(&q.signals(Transform::of(&trial)), &trial, &q.tau, &rows.fit)?
             .error_on(&q.tau, &rows.fit);
-        Ok((q, e))
+        Some((q, e))
     };
-    let golden = 0.5 * (5f64.sqrt() - 1.0);
-    let (mut a, mut b) = (0.5 * delta, 2.0 * delta);
-    let mut best = (q.clone(), delta, at(&q, delta)?.1);
-    let mut c = b - golden * (b - a);
-    let mut d = a + golden * (b - a);
-    let mut fc = at(&q, c)?;
-    let mut fd = at(&q, d)?;
-    for _ in 0..10 {
-        if fc.1 < fd.1 {
-            (b, d, fd) = (d, c, fc);
-            c = b - golden * (b - a);
-            fc = at(&q, c)?;
-        } else {
-            (a, c, fc) = (c, d, fd);
-            d = a + golden * (b - a);
-            fd = at(&q, d)?;
-        }
-        for (x, f) in [(c, &fc), (d, &fd)] {
-            if f.1 < best.2 {
-                best = (f.0.clone(), x, f.1);
-            }
-        }
-    }
-    Ok((best.0, best.1))
+    let Some((_, e)) = at(delta) else {
+        return (q, delta);
+    };
+    let (size, q) = golden_section((0.5 * delta, 2.0 * delta), (delta, (q.clone(), e)), at);
+    (q, size)
 }
 
 /// The validation RMSE of `trial` fitted on the train blocks.
