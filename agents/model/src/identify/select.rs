@@ -1171,3 +1171,21 @@ pub(crate) fn with_heldout_veto(
         vetoed.extend(veto);
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::golden_section;
+
+    #[test]
+    fn golden_sections_find_a_parabolas_least_and_keep_the_start_where_nothing_beats_it() {
+        // (x − 0.7)², bracketed by [0, 2]: ten steps shrink the bracket to 2·0.618¹¹ ≈ 0.01.
+        let f = |x: f64| Some(((), (x - 0.7) * (x - 0.7)));
+        let (x, ()) = golden_section((0.0, 2.0), (2.0, ((), 1.69)), f);
+        assert!((x - 0.7).abs() < 0.01, "{x}");
+        // A start already at the least is kept; a value that cannot be evaluated never wins.
+        let (x, ()) = golden_section((0.0, 2.0), (0.7, ((), 0.0)), f);
+        assert_eq!(x, 0.7);
+        let never = |_: f64| None::<((), f64)>;
+        assert_eq!(golden_section((0.0, 2.0), (1.5, ((), 3.0)), never).0, 1.5);
+    }
+}
