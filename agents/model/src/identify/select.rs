@@ -286,8 +286,9 @@ pub(crate) fn forward(
                 // An encoder slip: the loop fitted without it has bent to hold part of it
                 // (a softer, wider loop), so the jump time found against that loop is not to
                 // be trusted. Jump times every 1/12 of the run, the times the residual points
-                // at and a constant offset are each settled for one round, the best one to the
-                // end, and its time then found again from what the settled loop leaves.
+                // at and a constant offset are each settled for one round, the three best to
+                // the end, and the best one's time then found again from what its settled loop
+                // leaves.
                 let mut tried_slips: Vec<(Shaped, f64)> = Vec::new();
                 let slips: Vec<&Shaped> =
                     grid.iter().filter(|c| c.on == Place::Deflection).collect();
@@ -655,8 +656,7 @@ fn profile_friction(
         qb.tau = q.tau.iter().zip(&col).map(|(t, c)| t - b * c).collect();
         let curve = refit_restoring(&qb, chosen, rows).ok()?;
         qb.restoring = Some(curve.clone());
-        let e = fit(&qb.signals(tr), chosen, &qb.tau, rows)?.error_on(&qb.tau, rows);
-        Some((curve, e))
+        Some((curve, loop_fit_error(&qb, chosen, tr, rows)?))
     };
     let Some(start) = at(reached) else {
         return Ok(current);
@@ -770,15 +770,25 @@ fn profile_slip(
         trial.push(Shaped { size, ..*cand });
         let mut q = q.clone();
         q.restoring = Some(refit_restoring(&q, &trial, &rows.fit).ok()?);
-        let e = fit(&q.signals(Transform::of(&trial)), &trial, &q.tau, &rows.fit)?
-            .error_on(&q.tau, &rows.fit);
+        let e = loop_fit_error(&q, &trial, Transform::of(&trial), &rows.fit)?;
         Some((q, e))
     };
-    let Some((_, e)) = at(delta) else {
+    // The start: the loop the last round refitted for `delta` already.
+    let mut trial = chosen.to_vec();
+    trial.push(Shaped {
+        size: delta,
+        ..*cand
+    });
+    let Some(e) = loop_fit_error(&q, &trial, Transform::of(&trial), &rows.fit) else {
         return (q, delta);
     };
     let (size, q) = golden_section((0.5 * delta, 2.0 * delta), (delta, (q.clone(), e)), at);
     (q, size)
+}
+
+/// The RMSE on `rows` of `trial` fitted there beside `q`'s loop, the inputs changed by `tr`.
+fn loop_fit_error(q: &Problem, trial: &[Shaped], tr: Transform, rows: &[usize]) -> Option<f64> {
+    Some(fit(&q.signals(tr), trial, &q.tau, rows)?.error_on(&q.tau, rows))
 }
 
 /// The validation RMSE of `trial` fitted on the train blocks.
