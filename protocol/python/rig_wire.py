@@ -59,17 +59,19 @@ def _decode(buf):
     if len(body) != n:
         raise WireError("body length mismatch")
     if kind in KINDS:
-        name, fmt, fixed, optional = KINDS[kind]
-        if len(body) != struct.calcsize(fmt):
+        name, out = _fixed(kind, body)
+    elif kind == 9:
+        (cnt,) = struct.unpack_from("<H", body)
+        size = struct.calcsize(KINDS[1][1])
+        if not 1 <= cnt <= 1024 or len(body) != 2 + cnt * size:
             raise WireError("wrong body size")
-        vals = struct.unpack(fmt, body)
-        out = dict(zip(fixed, vals))
-        slots = vals[len(fixed):len(fixed) + len(optional)]
-        for i, (key, v) in enumerate(zip(optional, slots)):
-            out[key] = v if out["flags"] & (1 << i) else None
-        if kind == 2:
-            out["torque_enable"] = bool(vals[-1])
-        out.pop("flags", None)
+        samples = [_fixed(1, body[2 + i * size: 2 + (i + 1) * size])[1] for i in range(cnt)]
+        if len({x["joint"] for x in samples}) != cnt:
+            raise WireError("a joint appears twice")
+        for x in samples:
+            x["kind"] = "joint_sample"
+        out = dict(samples=samples)
+        name = "board_sample"
     elif kind == 3:
         joint, state, seq, t_ns = struct.unpack_from("<HBQQ", body)
         text, end = _text(body, struct.calcsize("<HBQQ"))
@@ -101,11 +103,32 @@ def _decode(buf):
         name = "allocation_result"
     else:
         raise WireError(f"unknown kind {kind}")
+    _check_finite(out)
+    out["kind"] = name
+    return out
+
+
+def _fixed(kind, body):
+    """A body of fixed size whose optional values follow their flag bits: (name, fields)."""
+    name, fmt, fixed, optional = KINDS[kind]
+    if len(body) != struct.calcsize(fmt):
+        raise WireError("wrong body size")
+    vals = struct.unpack(fmt, body)
+    out = dict(zip(fixed, vals))
+    slots = vals[len(fixed):len(fixed) + len(optional)]
+    for i, (key, v) in enumerate(zip(optional, slots)):
+        out[key] = v if out["flags"] & (1 << i) else None
+    if kind == 2:
+        out["torque_enable"] = bool(vals[-1])
+    out.pop("flags", None)
+    _check_finite(out)
+    return name, out
+
+
+def _check_finite(out):
     for key, val in out.items():
         if isinstance(val, float) and not math.isfinite(val):
             raise WireError(f"{key} is not finite")
-    out["kind"] = name
-    return out
 
 
 if __name__ == "__main__":

@@ -4,6 +4,7 @@
 //! rig/<rig>/joint/<j>/sample        joint agent → all      acquisition-stamped sample
 //! rig/<rig>/joint/<j>/command       allocator/operator → joint agent
 //! rig/<rig>/joint/<j>/status        joint agent → all      limits hit, faults, watchdog
+//! rig/<rig>/board/<b>/sample        board agent → all      one tick of a board of several joints
 //! rig/<rig>/estimate/joint/<j>      estimator → all        τ̂, k̂, Î, N̂, residual
 //! rig/<rig>/estimate/ee             estimator → all        pose, F̂, K_uu, stale joints
 //! rig/<rig>/allocate                allocator queryable    request → allocation
@@ -79,6 +80,23 @@ impl Keys {
 
     pub fn joint_status(&self, j: &str) -> Result<String, KeyError> {
         self.joint(j, "status")
+    }
+
+    /// Where a board serving several joints publishes each tick's samples as one message
+    /// (kind 9). `<b>` is the board's name (`rig_config::board_name`).
+    pub fn board_sample(&self, b: &str) -> Result<String, KeyError> {
+        check_name("board", b)?;
+        Ok(format!("{}/board/{b}/sample", self.prefix))
+    }
+
+    /// Every sample, a joint's or a board's: `rig/<rig>/*/*/sample`.
+    pub fn all_samples(&self) -> String {
+        format!("{}/*/*/sample", self.prefix)
+    }
+
+    /// Every board's samples: `rig/<rig>/board/*/sample`.
+    pub fn all_board_samples(&self) -> String {
+        format!("{}/board/*/sample", self.prefix)
     }
 
     pub fn joint_estimate(&self, j: &str) -> Result<String, KeyError> {
@@ -168,6 +186,10 @@ pub enum Topic {
         rig: String,
         joint: String,
     },
+    BoardSample {
+        rig: String,
+        board: String,
+    },
     JointStatus {
         rig: String,
         joint: String,
@@ -219,6 +241,10 @@ impl Topic {
                 rig: r,
                 joint: name("joint", j)?,
             },
+            ["board", b, "sample"] => Topic::BoardSample {
+                rig: r,
+                board: name("board", b)?,
+            },
             ["joint", j, "command"] => Topic::JointCommand {
                 rig: r,
                 joint: name("joint", j)?,
@@ -258,6 +284,8 @@ mod tests {
     fn wildcards_and_bench_keys_are_built_under_the_rigs_prefix() {
         let k = Keys::new("lab-1").unwrap();
         assert_eq!(k.all_joint_samples(), "rig/lab-1/joint/*/sample");
+        assert_eq!(k.all_board_samples(), "rig/lab-1/board/*/sample");
+        assert_eq!(k.all_samples(), "rig/lab-1/*/*/sample");
         assert_eq!(k.all_sim_truths(), "rig/lab-1/sim/joint/*/truth");
         assert_eq!(k.bench("42", "ping").unwrap(), "rig/lab-1/bench/42/ping");
         assert!(k.bench("4/2", "ping").is_err());
@@ -272,6 +300,13 @@ mod tests {
                 Topic::JointSample {
                     rig: "lab-1".into(),
                     joint: "j1".into(),
+                },
+            ),
+            (
+                k.board_sample("arm").unwrap(),
+                Topic::BoardSample {
+                    rig: "lab-1".into(),
+                    board: "arm".into(),
                 },
             ),
             (

@@ -25,8 +25,8 @@ pub use codec::{DecodeError, MAGIC, VERSION};
 pub use keys::{KeyError, Keys, Topic};
 pub use kind::{Kind, UnknownKind};
 pub use messages::{
-    AllocationRequest, AllocationResult, AllocationTarget, AnyMessage, EeEstimate, JointCommand,
-    JointEstimate, JointSample, JointState, JointStatus, Message, SimTruth, StiffnessTriple,
-    decode, decode_any, encode,
+    AllocationRequest, AllocationResult, AllocationTarget, AnyMessage, BoardSample, EeEstimate,
+    JointCommand, JointEstimate, JointSample, JointState, JointStatus, Message, SimTruth,
+    StiffnessTriple, decode, decode_any, decode_samples, encode,
 };
-pub use validation::{MAX_JOINTS, MAX_TEXT, MAX_TORQUE_NM, ValidationError};
+pub use validation::{MAX_BOARD_JOINTS, MAX_JOINTS, MAX_TEXT, MAX_TORQUE_NM, ValidationError};

@@ -19,6 +19,7 @@ macro_rules! wire_table {
             6 AllocationRequest allocation "<QddBddd",
             7 AllocationResult  allocation "<QBddddddd + B n*d n*d H utf8",
             8 SimTruth          sim        "<HQQdddd",
+            9 BoardSample       joint      "<H + n*HHQQdddddd",
         }
     };
 }

@@ -16,6 +16,8 @@ pub struct ValidationError {
 pub const MAX_TEXT: usize = 1024;
 /// Most joints in one allocation result.
 pub const MAX_JOINTS: usize = 16;
+/// Most joints in one board message (kind 9).
+pub const MAX_BOARD_JOINTS: usize = 1024;
 /// Largest |torque| accepted [N·m]: far above any joint of the rig, catches garbage.
 pub const MAX_TORQUE_NM: f64 = 1e4;
 

@@ -91,9 +91,20 @@ fn result() -> impl Strategy<Value = AllocationResult> {
         })
 }
 
+/// A board's tick: 1 to 8 samples, each of its own joint.
+fn board() -> impl Strategy<Value = BoardSample> {
+    prop::collection::vec(sample(), 1..8).prop_map(|mut samples| {
+        for (i, s) in samples.iter_mut().enumerate() {
+            s.joint = i as u16;
+        }
+        BoardSample { samples }
+    })
+}
+
 fn all_encodings() -> impl Strategy<Value = Vec<u8>> {
     prop_oneof![
         sample().prop_map(|m| encode(&m).unwrap()),
+        board().prop_map(|m| encode(&m).unwrap()),
         status().prop_map(|m| encode(&m).unwrap()),
         result().prop_map(|m| encode(&m).unwrap()),
     ]
@@ -108,7 +119,7 @@ proptest! {
     }
 
     #[test]
-    fn random_bodies_behind_a_valid_header_never_panic(kind in 1u8..=8, body in prop::collection::vec(any::<u8>(), 0..200)) {
+    fn random_bodies_behind_a_valid_header_never_panic(kind in 1u8..=9, body in prop::collection::vec(any::<u8>(), 0..200)) {
         let mut bytes = vec![b'V', b'R', VERSION, kind];
         bytes.extend_from_slice(&(body.len() as u32).to_le_bytes());
         bytes.extend_from_slice(&body);
@@ -129,6 +140,11 @@ proptest! {
     #[test]
     fn samples_round_trip(m in sample()) {
         prop_assert_eq!(decode::<JointSample>(&encode(&m).unwrap()).unwrap(), m);
+    }
+
+    #[test]
+    fn board_samples_round_trip(m in board()) {
+        prop_assert_eq!(decode::<BoardSample>(&encode(&m).unwrap()).unwrap(), m);
     }
 
     #[test]

@@ -100,6 +100,33 @@ fn one_of_each() -> Vec<AnyMessage> {
             error: String::new(),
         }
         .into(),
+        BoardSample {
+            samples: vec![
+                JointSample {
+                    joint: 0,
+                    seq: 8,
+                    t_acq_ns: T,
+                    motor_rad: 0.1,
+                    deflection_rad: -0.002,
+                    pivot_m: Some(0.012),
+                    torque_nm: None,
+                    motor_torque_nm: Some(0.3),
+                    stiffness_motor_rad: None,
+                },
+                JointSample {
+                    joint: 2,
+                    seq: 8,
+                    t_acq_ns: T,
+                    motor_rad: -0.7,
+                    deflection_rad: 0.1 + 0.2,
+                    pivot_m: None,
+                    torque_nm: Some(1e-300),
+                    motor_torque_nm: None,
+                    stiffness_motor_rad: Some(2.0),
+                },
+            ],
+        }
+        .into(),
         SimTruth {
             joint: 1,
             seq: 3,

@@ -135,9 +135,32 @@ fn python_decodes_every_kind_like_rust() {
         encode(&ee).unwrap(),
         encode(&request).unwrap(),
         encode(&result).unwrap(),
+        encode(&SimTruth {
+            joint: 1,
+            seq: 7,
+            t_acq_ns: T,
+            deflection_rad: 0.004,
+            torque_nm: 0.031,
+            link_rad: -0.2,
+            stiffness_nm_per_rad: 3.5,
+        })
+        .unwrap(),
+        encode(&BoardSample {
+            samples: vec![
+                sample,
+                JointSample {
+                    joint: 5,
+                    seq: 12346,
+                    torque_nm: Some(-0.75),
+                    pivot_m: None,
+                    ..sample
+                },
+            ],
+        })
+        .unwrap(),
     ];
     let v = python_decode(&payloads).unwrap();
-    assert_eq!(v.len(), 7);
+    assert_eq!(v.len(), 9);
 
     assert_eq!(v[0]["kind"], "joint_sample");
     assert_eq!(v[0]["joint"], 3);
@@ -169,6 +192,20 @@ fn python_decodes_every_kind_like_rust() {
     assert_eq!(v[6]["pivot_m"][0].as_f64(), Some(0.01356));
     assert_eq!(v[6]["achieved"]["xy"].as_f64(), Some(-1e-13));
     assert_eq!(v[6]["feasible"], true);
+
+    assert_eq!(v[7]["kind"], "sim_truth");
+    assert_eq!(v[7]["stiffness_nm_per_rad"].as_f64(), Some(3.5));
+
+    // A board's tick: each sample decoded as kind 1 is.
+    assert_eq!(v[8]["kind"], "board_sample");
+    let samples = v[8]["samples"].as_array().unwrap();
+    assert_eq!(samples.len(), 2);
+    assert_eq!(samples[0], v[0]);
+    assert_eq!(samples[1]["joint"], 5);
+    assert_eq!(samples[1]["seq"], 12346);
+    assert_eq!(samples[1]["torque_nm"].as_f64(), Some(-0.75));
+    assert_eq!(samples[1]["pivot_m"], Value::Null);
+    assert_eq!(samples[1]["t_acq_ns"].as_u64(), Some(T));
 }
 
 #[test]
@@ -190,7 +227,24 @@ fn python_refuses_what_rust_refuses() {
     let truncated = good[..good.len() - 3].to_vec();
     let mut version = good.clone();
     version[2] = 2;
-    for bad in [nan, truncated, version] {
+    // A board message naming one joint twice, and one of no samples.
+    let board = |bodies: &[&[u8]]| -> Vec<u8> {
+        let mut body = (bodies.len() as u16).to_le_bytes().to_vec();
+        for b in bodies {
+            body.extend_from_slice(b);
+        }
+        let mut m = vec![b'V', b'R', 1, 9];
+        m.extend_from_slice(&(body.len() as u32).to_le_bytes());
+        m.extend(body);
+        m
+    };
+    let twice = board(&[&good[8..], &good[8..]]);
+    let empty = board(&[]);
+    let mut other = good.clone();
+    other[8] = 1;
+    assert!(decode_any(&board(&[&good[8..], &other[8..]])).is_ok());
+    assert!(python_decode(&[board(&[&good[8..], &other[8..]])]).is_ok());
+    for bad in [nan, truncated, version, twice, empty] {
         assert!(decode_any(&bad).is_err());
         let err = python_decode(&[bad]).expect_err("python must refuse it too");
         assert!(err.contains("WireError"), "{err}");

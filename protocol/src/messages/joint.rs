@@ -4,7 +4,7 @@
 use super::{Message, check_flags, flag, flags_of};
 use crate::codec::{DecodeError, Reader, Writer};
 use crate::kind::Kind;
-use crate::validation::{Check, MAX_TORQUE_NM, ValidationError};
+use crate::validation::{Check, MAX_BOARD_JOINTS, MAX_TORQUE_NM, ValidationError};
 
 /// A joint agent's sample: what the joint board read at one instant.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -94,6 +94,68 @@ impl Message for JointSample {
             motor_torque_nm: flag(flags, 2, r.f64("motor_torque_nm")?),
             stiffness_motor_rad: flag(flags, 3, r.f64("stiffness_motor_rad")?),
         })
+    }
+}
+
+/// One tick of a board serving several joints: each joint's sample, in one message (kind 9,
+/// on `rig/<rig>/board/<board>/sample`). A board of one joint publishes kind 1 on its joint's
+/// key instead. Each sample keeps its own joint, `seq` and acquisition time, so a reader treats
+/// a board message as its samples one after the other.
+#[derive(Debug, Clone, PartialEq)]
+#[cfg_attr(
+    feature = "json",
+    derive(serde::Serialize, serde::Deserialize, schemars::JsonSchema)
+)]
+pub struct BoardSample {
+    /// 1 to [`MAX_BOARD_JOINTS`] samples, no joint twice.
+    pub samples: Vec<JointSample>,
+}
+
+impl Message for BoardSample {
+    const KIND: Kind = Kind::BoardSample;
+
+    fn validate(&self) -> Result<(), ValidationError> {
+        let c = Check("board_sample");
+        let n = self.samples.len();
+        if n == 0 || n > MAX_BOARD_JOINTS {
+            return Err(c.err(
+                "samples",
+                format!("{n} samples: a board carries 1 to {MAX_BOARD_JOINTS}"),
+            ));
+        }
+        let mut seen = std::collections::HashSet::with_capacity(n);
+        for (i, s) in self.samples.iter().enumerate() {
+            s.validate()
+                .map_err(|e| c.err("samples", format!("samples[{i}]: {e}")))?;
+            if !seen.insert(s.joint) {
+                return Err(c.err(
+                    "samples",
+                    format!("samples[{i}]: joint {} appears twice", s.joint),
+                ));
+            }
+        }
+        Ok(())
+    }
+
+    fn write_body(&self, w: &mut Writer) {
+        w.u16(self.samples.len() as u16);
+        for s in &self.samples {
+            s.write_body(w);
+        }
+    }
+
+    fn read_body(r: &mut Reader<'_>) -> Result<Self, DecodeError> {
+        let n = usize::from(r.u16("n")?);
+        if n == 0 || n > MAX_BOARD_JOINTS {
+            return Err(DecodeError::BadField {
+                field: "n",
+                reason: format!("{n} samples: a board carries 1 to {MAX_BOARD_JOINTS}"),
+            });
+        }
+        let samples = (0..n)
+            .map(|_| JointSample::read_body(r))
+            .collect::<Result<Vec<_>, _>>()?;
+        Ok(Self { samples })
     }
 }
 

@@ -1,6 +1,6 @@
 //! The messages of the rig, split by the direction they travel in, and their encoding.
 //!
-//! - [`joint`]: from and to a joint agent (sample, command, status);
+//! - [`joint`]: from and to a joint agent (sample, a board's samples, command, status);
 //! - [`estimate`]: from the estimator host (joint and end-effector estimates);
 //! - [`allocation`]: to and from the allocator (request, result);
 //! - [`sim`]: what only a simulated joint agent knows (the truth).
@@ -18,7 +18,7 @@ pub mod sim;
 
 pub use allocation::{AllocationRequest, AllocationResult, AllocationTarget};
 pub use estimate::{EeEstimate, JointEstimate};
-pub use joint::{JointCommand, JointSample, JointState, JointStatus};
+pub use joint::{BoardSample, JointCommand, JointSample, JointState, JointStatus};
 pub use sim::SimTruth;
 
 use crate::codec::{DecodeError, Reader, Writer};
@@ -58,6 +58,15 @@ pub fn decode<M: Message>(bytes: &[u8]) -> Result<M, DecodeError> {
     r.finish()?;
     m.validate()?;
     Ok(m)
+}
+
+/// The joint samples a payload on a `…/sample` key carries: one joint's (kind 1) or a board's
+/// tick of several joints (kind 9), in the board's order. Any other kind is an error.
+pub fn decode_samples(bytes: &[u8]) -> Result<Vec<JointSample>, DecodeError> {
+    match Reader::open(bytes)?.0 {
+        Kind::BoardSample => Ok(decode::<BoardSample>(bytes)?.samples),
+        _ => Ok(vec![decode::<JointSample>(bytes)?]),
+    }
 }
 
 pub(crate) fn flag(flags: u16, bit: u16, v: f64) -> Option<f64> {
@@ -190,6 +199,59 @@ mod tests {
         );
         assert_eq!(f64::from_le_bytes(bytes[36..44].try_into().unwrap()), -0.01);
         assert_eq!(decode::<JointSample>(&bytes).unwrap(), sample());
+    }
+
+    #[test]
+    fn a_board_message_is_a_count_then_each_samples_kind_1_body_and_names_the_bad_one() {
+        let other = JointSample {
+            joint: 5,
+            ..sample()
+        };
+        let board = BoardSample {
+            samples: vec![sample(), other],
+        };
+        let bytes = encode(&board).unwrap();
+        let one = encode(&sample()).unwrap();
+        assert_eq!(bytes.len(), 8 + 2 + 2 * 68);
+        assert_eq!(&bytes[0..4], &[b'V', b'R', 1, 9]);
+        assert_eq!(u16::from_le_bytes(bytes[8..10].try_into().unwrap()), 2);
+        assert_eq!(&bytes[10..78], &one[8..]);
+        assert_eq!(decode::<BoardSample>(&bytes).unwrap(), board);
+        assert_eq!(decode_samples(&bytes).unwrap(), board.samples);
+        assert_eq!(decode_samples(&one).unwrap(), vec![sample()]);
+        let status = JointStatus {
+            joint: 2,
+            state: JointState::Ok,
+            seq: 1,
+            t_ns: 1,
+            text: String::new(),
+        };
+        assert!(decode_samples(&encode(&status).unwrap()).is_err());
+
+        let e = encode(&BoardSample { samples: vec![] }).unwrap_err();
+        assert_eq!((e.message, e.field), ("board_sample", "samples"));
+        let e = encode(&BoardSample {
+            samples: vec![sample(), sample()],
+        })
+        .unwrap_err();
+        assert!(
+            e.reason.contains("samples[1]: joint 2 appears twice"),
+            "{e}"
+        );
+        let e = encode(&BoardSample {
+            samples: vec![
+                sample(),
+                JointSample {
+                    deflection_rad: f64::NAN,
+                    ..other
+                },
+            ],
+        })
+        .unwrap_err();
+        assert!(
+            e.reason.contains("samples[1]: joint_sample.deflection_rad"),
+            "{e}"
+        );
     }
 
     #[test]
