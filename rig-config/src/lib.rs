@@ -21,7 +21,9 @@ use rig_model::hysteresis::RestoringCurve;
 use rig_model::lever::LeverVsa;
 use rig_model::observer::EkfConfig;
 use rig_model::planar::{Elbow, FiveBar, FiveBarGeometry, PlanarRobot, SerialArm};
-pub use security::{Grants, Identity, SecurityConfig, board_identity, identities};
+pub use security::{
+    Grants, Identity, SecurityConfig, board_identity, board_may_carry, board_name, identities,
+};
 pub use validate::{check_endpoint, endpoint_reaches, endpoint_security, unreachable_pairs};
 
 /// How the joints are arranged.

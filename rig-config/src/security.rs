@@ -12,7 +12,7 @@
 //! | allocator | `allocator` | `joint/*/command`, `allocation/result` |
 //! | operator (`rig up`, `rig pivot`, `rig allocate`) | `operator` | `joint/*/command`, `stiffness/goal`; asks `allocate` |
 //! | recorder, viz | `recorder`, `viz` | nothing (they listen) |
-//! | a machine of the plan (`rig launch`) | `machine-<name>` | what its roles may |
+//! | a machine of the plan (`rig launch`) | `machine-<name>` | what its roles may, and `board/<name>/sample` when it runs two joints or more |
 //!
 //! Each identity may also declare its own liveliness token (`alive/<role>/…`); anyone with
 //! a lab certificate may subscribe. This module is the table; `rig-runtime` turns it into
@@ -149,7 +149,12 @@ impl Identity {
             },
             Identity::Machine(m) => {
                 let mut g = Grants::default();
-                for r in cfg.machine(m).map_or(&[][..], |m| &m.roles[..]) {
+                let roles = cfg.machine(m).map_or(&[][..], |m| &m.roles[..]);
+                // A board agent serving several of its joints sends each tick as one message.
+                if roles.iter().filter(|r| matches!(r, Role::Joint(_))).count() > 1 {
+                    g.put.push(k.board_sample(m)?);
+                }
+                for r in roles {
                     let r = Identity::of_role(r).grants(cfg)?;
                     for k in r.put {
                         if !g.put.contains(&k) {
@@ -180,6 +185,27 @@ pub fn board_identity(cfg: &RigConfig, joints: &[String]) -> Option<Identity> {
                     .all(|j| m.roles.contains(&Role::Joint(j.clone())))
             })
             .map(|m| Identity::Machine(m.name.clone())),
+    }
+}
+
+/// The name in the board key (`rig/<rig>/board/<name>/sample`) of an agent serving several
+/// `joints`: the plan's machine that runs them all (its certificate may publish there), else
+/// the first joint's name (possible only without `[security]`).
+pub fn board_name(cfg: &RigConfig, joints: &[String]) -> String {
+    match board_identity(cfg, joints) {
+        Some(Identity::Machine(m)) => m,
+        _ => joints.first().cloned().unwrap_or_default(),
+    }
+}
+
+/// Whether a message on board `board`'s key may carry joint `joint`'s sample: a machine of
+/// the plan carries the joints it runs; a board that is no machine of the plan carries any
+/// joint without `[security]` (where anyone may say anything) and none under it (no
+/// certificate may publish there).
+pub fn board_may_carry(cfg: &RigConfig, board: &str, joint: &str) -> bool {
+    match cfg.machine(board) {
+        Some(m) => m.roles.contains(&Role::Joint(joint.to_string())),
+        None => cfg.security.is_none(),
     }
 }
 
@@ -251,6 +277,10 @@ mod tests {
         assert!(m.put.contains(&"rig/parallel/joint/*/command".to_string()));
         assert!(!m.put.contains(&"rig/parallel/joint/j2/sample".to_string()));
         assert!(!m.put.iter().any(|k| k.starts_with("rig/parallel/estimate")));
+        assert!(
+            !m.put.iter().any(|k| k.contains("/board/")),
+            "one joint: no board key"
+        );
         let served = |v: &[&str]| v.iter().map(|j| j.to_string()).collect::<Vec<_>>();
         assert_eq!(
             board_identity(&cfg, &served(&["j3"])),
@@ -266,6 +296,29 @@ mod tests {
             board_identity(&cfg, &served(&["j1", "j2"])),
             Some(Identity::Machine("board1".into()))
         );
+        // Two joints on the machine: its board key, which carries only its joints.
+        let m = Identity::Machine("board1".into()).grants(&cfg).unwrap();
+        assert!(
+            m.put
+                .contains(&"rig/parallel/board/board1/sample".to_string())
+        );
+        assert_eq!(board_name(&cfg, &served(&["j1", "j2"])), "board1");
+        assert_eq!(board_name(&cfg, &served(&["j3", "j4"])), "j3");
+        assert!(board_may_carry(&cfg, "board1", "j2"));
+        assert!(!board_may_carry(&cfg, "board1", "j3"));
+        assert!(
+            board_may_carry(&cfg, "j3", "j4"),
+            "no [security]: any joint"
+        );
+        cfg.security = Some(SecurityConfig {
+            ca: "ca.pem".into(),
+            certs: "certs".into(),
+        });
+        assert!(
+            !board_may_carry(&cfg, "j3", "j4"),
+            "[security]: machines only"
+        );
+        assert!(board_may_carry(&cfg, "board1", "j1"));
         let names: Vec<String> = identities(&cfg).iter().map(Identity::name).collect();
         assert!(names.contains(&"machine-board1".to_string()));
         assert_eq!(

@@ -12,7 +12,7 @@ use rerun::{
 };
 use rig_config::{JointKind, RigConfig};
 use rig_model::planar::{PlanarRobot, end_effector_force};
-use rig_protocol::{AnyMessage, JointState, StiffnessTriple, Topic};
+use rig_protocol::{AnyMessage, JointSample, JointState, StiffnessTriple, Topic};
 
 use crate::paths;
 use crate::trail::{self, Gate, Trail};
@@ -221,6 +221,33 @@ impl Scene {
         Ok(())
     }
 
+    fn joint_sample(
+        &mut self,
+        rec: &RecordingStream,
+        s: &JointSample,
+    ) -> RecordingStreamResult<()> {
+        let Some(j) = self.joints.get_mut(s.joint as usize) else {
+            return Ok(());
+        };
+        rec.set_timestamp_nanos_since_epoch(TIMELINE, s.t_acq_ns as i64);
+        j.recent.push_back((s.seq, s.deflection_rad));
+        if j.recent.len() > 256 {
+            j.recent.pop_front();
+        }
+        if let Some(tau) = s.torque_nm {
+            j.measured
+                .push(s.t_acq_ns, s.deflection_rad.to_degrees(), -tau);
+        }
+        if j.series.pass(s.t_acq_ns)
+            && let Some(p) = s.pivot_m
+        {
+            let path = format!("{}/pivot_mm", paths::joint(&j.name));
+            self.scalar(rec, path, p * 1e3)?;
+        }
+        self.redraw_loop(rec, s.joint as usize, s.t_acq_ns)?;
+        Ok(())
+    }
+
     pub(crate) fn on(
         &mut self,
         rec: &RecordingStream,
@@ -229,26 +256,12 @@ impl Scene {
     ) -> RecordingStreamResult<()> {
         self.stats.messages += 1;
         match msg {
-            AnyMessage::JointSample(s) => {
-                let Some(j) = self.joints.get_mut(s.joint as usize) else {
-                    return Ok(());
-                };
-                rec.set_timestamp_nanos_since_epoch(TIMELINE, s.t_acq_ns as i64);
-                j.recent.push_back((s.seq, s.deflection_rad));
-                if j.recent.len() > 256 {
-                    j.recent.pop_front();
+            AnyMessage::JointSample(s) => self.joint_sample(rec, s)?,
+            // A board's tick: each of its joints' samples, as if each had come on its own key.
+            AnyMessage::BoardSample(b) => {
+                for s in &b.samples {
+                    self.joint_sample(rec, s)?;
                 }
-                if let Some(tau) = s.torque_nm {
-                    j.measured
-                        .push(s.t_acq_ns, s.deflection_rad.to_degrees(), -tau);
-                }
-                if j.series.pass(s.t_acq_ns)
-                    && let Some(p) = s.pivot_m
-                {
-                    let path = format!("{}/pivot_mm", paths::joint(&j.name));
-                    self.scalar(rec, path, p * 1e3)?;
-                }
-                self.redraw_loop(rec, s.joint as usize, s.t_acq_ns)?;
             }
             AnyMessage::SimTruth(t) => {
                 let n = self.joints.len();

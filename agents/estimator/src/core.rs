@@ -23,7 +23,7 @@ use rig_model::live::LiveJoint;
 use rig_model::monitor::ResidualMonitor;
 use rig_model::observer::{DecoupledObserver, ImpedanceSample};
 use rig_protocol::{
-    EeEstimate, JointEstimate, JointSample, JointState, JointStatus, StiffnessTriple,
+    BoardSample, EeEstimate, JointEstimate, JointSample, JointState, JointStatus, StiffnessTriple,
 };
 use thiserror::Error;
 
@@ -67,7 +67,8 @@ pub struct CoreStats {
     pub refused_replay: u64,
     /// Samples refused: a pivot outside the joint's travel.
     pub refused_range: u64,
-    /// Samples refused: the payload's joint is not the one of the key it came on.
+    /// Samples refused: the payload's joint is not the one of the key it came on (or, on a
+    /// board's key, one the board does not run).
     pub refused_key: u64,
 }
 
@@ -157,8 +158,15 @@ pub struct EstimatorCore {
     effects: Vec<rig_config::JointEffects>,
     /// Each board's clock against this host's, from the accepted samples.
     clock: ClockWatch,
+    /// The config, for which boards may carry which joints ([`rig_config::board_may_carry`]),
+    /// and per board key seen, that answer for each joint.
+    boards_cfg: RigConfig,
+    board_carries: std::collections::HashMap<String, Vec<bool>>,
     pub stats: CoreStats,
 }
+
+/// Board keys whose allowed joints are remembered.
+const MAX_BOARDS_REMEMBERED: usize = 256;
 
 /// How often each board's clock offset is estimated [ns].
 pub const CLOCK_WINDOW_NS: u64 = 1_000_000_000;
@@ -263,6 +271,8 @@ impl EstimatorCore {
                 .collect(),
             effects: cfg.joints.iter().map(|j| j.effects).collect(),
             clock: ClockWatch::new(n, timing.period_ns, CLOCK_WINDOW_NS),
+            boards_cfg: cfg.clone(),
+            board_carries: std::collections::HashMap::new(),
             stats: CoreStats::default(),
         })
     }
@@ -333,6 +343,43 @@ impl EstimatorCore {
             return Vec::new();
         }
         self.on_sample(s, now_ns)
+    }
+
+    /// Feeds a board's tick that arrived on board `board`'s key, sample by sample (as if each
+    /// had come on its joint's key). A sample of a joint the board may not carry (a machine of
+    /// the plan carries the joints it runs) is refused and counted like one on another
+    /// joint's key.
+    pub fn on_board_sample_from(
+        &mut self,
+        board: &str,
+        b: BoardSample,
+        now_ns: u64,
+    ) -> Vec<Output> {
+        // Remembered for the first boards seen (a peer inventing board names cannot grow it).
+        let carries: Vec<bool> = match self.board_carries.get(board) {
+            Some(c) => c.clone(),
+            None => {
+                let c: Vec<bool> = self
+                    .names
+                    .iter()
+                    .map(|j| rig_config::board_may_carry(&self.boards_cfg, board, j))
+                    .collect();
+                if self.board_carries.len() < MAX_BOARDS_REMEMBERED {
+                    self.board_carries.insert(board.to_string(), c.clone());
+                }
+                c
+            }
+        };
+        let mut out = Vec::new();
+        for s in b.samples {
+            let allowed = carries.get(s.joint as usize).copied().unwrap_or(false);
+            if allowed {
+                out.extend(self.on_sample(s, now_ns));
+            } else {
+                self.stats.refused_key += 1;
+            }
+        }
+        out
     }
 
     /// Why sample `s` of joint `j` cannot be believed, if it cannot: a stamp beyond the
@@ -599,18 +646,23 @@ impl EstimatorCore {
         let mut diagnoses = Vec::new();
         // 2 s windows, looked at every 0.25 s.
         let per_s = 1e9 / self.timing.period_ns.max(1) as f64;
-        let new = || {
-            ResidualMonitor::new(
-                (2.0 * per_s).round() as usize,
-                (0.25 * per_s).round() as usize,
-            )
+        let n = self.names.len();
+        // Each joint's fits on its own ticks (`staggered`): not all of them on one.
+        let new = |j: usize| {
+            move || {
+                ResidualMonitor::new(
+                    (2.0 * per_s).round() as usize,
+                    (0.25 * per_s).round() as usize,
+                )
+                .staggered(j, n)
+            }
         };
         for e in &joint_out {
             let j = e.joint as usize;
             if let (Some(r), Some(Some(s)), Some(m)) =
                 (e.residual_nm, slots.get(j), self.monitors.get_mut(j))
                 && let Some(d) =
-                    m.get_or_insert_with(new)
+                    m.get_or_insert_with(new(j))
                         .push(e.t_acq_ns as f64 * 1e-9, s.deflection_rad, r)
             {
                 diagnoses.push((j, d));
@@ -1023,5 +1075,48 @@ mod tests {
         let said = statuses(&core.on_sample(off, 14 * ms));
         assert_eq!(core.stats.refused_range, 1);
         assert!(said[0].text.contains("outside its travel"), "{said:?}");
+    }
+
+    #[test]
+    fn a_boards_tick_completes_a_tick_at_once_and_its_key_carries_only_the_joints_it_runs() {
+        let mut c = cfg();
+        c.machines = vec![rig_config::Machine {
+            name: "left".into(),
+            roles: vec![
+                rig_config::Role::Joint("j1".into()),
+                rig_config::Role::Joint("j2".into()),
+            ],
+            listen: vec![],
+            connect: vec![],
+        }];
+        let mut core = EstimatorCore::new(&c, CoreTiming::for_rate(1000.0)).unwrap();
+        let ms = 1_000_000u64;
+        let board = |js: &[u16], tick: u64| BoardSample {
+            samples: js.iter().map(|&j| sample(j, tick, 0.0)).collect(),
+        };
+        // Machine `left` runs j1 and j2 (indices 0, 1): a j3 sample on its key is refused.
+        let out = core.on_board_sample_from("left", board(&[0, 1, 2], 1), ms);
+        assert_eq!(core.stats.refused_key, 1);
+        assert_eq!(ee(&out), 0);
+        // A board that is no machine of the plan carries any joint without [security]: the
+        // other two joints of tick 1 complete it, one end-effector estimate for the tick.
+        core.on_board_sample_from("left", board(&[0, 1], 2), 2 * ms);
+        let out = core.on_board_sample_from("j3", board(&[2, 3], 1), 2 * ms);
+        assert_eq!(core.stats.refused_key, 1);
+        assert_eq!(ee(&out), 1, "{out:?}");
+        // Under [security] a board key that is no machine's carries nothing.
+        c.security = Some(rig_config::SecurityConfig {
+            ca: "ca.pem".into(),
+            certs: "certs".into(),
+        });
+        let mut core = EstimatorCore::new(&c, CoreTiming::for_rate(1000.0)).unwrap();
+        assert!(
+            core.on_board_sample_from("j3", board(&[2, 3], 1), ms)
+                .is_empty()
+        );
+        assert_eq!(core.stats.refused_key, 2);
+        core.on_board_sample_from("left", board(&[0, 1], 1), ms);
+        assert_eq!(core.stats.refused_key, 2);
+        assert_eq!(core.stats.samples, 2);
     }
 }

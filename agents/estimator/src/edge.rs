@@ -1,5 +1,6 @@
-//! The estimator host's Zenoh edge: samples in from `rig/<rig>/joint/*/sample`, estimates out
-//! on `rig/<rig>/estimate/joint/<j>`, `rig/<rig>/estimate/ee` and `rig/<rig>/estimate/status`.
+//! The estimator host's Zenoh edge: samples in from `rig/<rig>/joint/*/sample` (a board of one
+//! joint) and `rig/<rig>/board/*/sample` (a board's tick of several joints, kind 9), estimates
+//! out on `rig/<rig>/estimate/joint/<j>`, `rig/<rig>/estimate/ee` and `rig/<rig>/estimate/status`.
 //!
 //! Samples are handled in the subscriber's callback, on Zenoh's receive thread: decode, feed
 //! the core, publish what it returns. No hop through a channel and an async task, which on
@@ -11,7 +12,7 @@ use std::sync::{Arc, Mutex, MutexGuard};
 use std::time::Duration;
 
 use rig_config::RigConfig;
-use rig_protocol::{JointSample, Keys, decode, encode};
+use rig_protocol::{BoardSample, JointSample, Keys, decode, encode};
 use rig_runtime::zenoh::{self, Wait};
 use rig_runtime::{NetOverrides, now_ns, open, publisher, zenoh_err as z};
 use thiserror::Error;
@@ -131,10 +132,17 @@ fn lock(state: &Mutex<State>) -> MutexGuard<'_, State> {
         .unwrap_or_else(std::sync::PoisonError::into_inner)
 }
 
-/// One sample from Zenoh: decoded, fed to the core, its estimates published.
-fn on_sample(state: &Mutex<State>, pubs: &Publishers, s: &zenoh::sample::Sample) {
-    let sample = match decode::<JointSample>(&s.payload().to_bytes()) {
-        Ok(sample) => sample,
+/// One message from Zenoh — a joint's sample, or a board's tick (`board`) — decoded, fed to
+/// the core, its estimates published.
+fn on_sample(state: &Mutex<State>, pubs: &Publishers, s: &zenoh::sample::Sample, board: bool) {
+    let bytes = s.payload().to_bytes();
+    let decoded = if board {
+        decode::<BoardSample>(&bytes).map(|b| b.samples)
+    } else {
+        decode::<JointSample>(&bytes).map(|s| vec![s])
+    };
+    let samples = match decoded {
+        Ok(samples) => samples,
         Err(e) => {
             let n = {
                 let mut st = lock(state);
@@ -151,24 +159,32 @@ fn on_sample(state: &Mutex<State>, pubs: &Publishers, s: &zenoh::sample::Sample)
             return;
         }
     };
-    // `rig/<rig>/joint/<j>/sample`: the payload must be joint <j>'s.
-    let key_joint = s.key_expr().as_str().rsplit('/').nth(1).unwrap_or("");
+    // `rig/<rig>/joint/<j>/sample` or `rig/<rig>/board/<b>/sample`: the payload must be
+    // joint <j>'s, or of joints board <b> runs.
+    let key_name = s.key_expr().as_str().rsplit('/').nth(1).unwrap_or("");
     let published_ns = s.timestamp().map(|t| t.get_time().as_nanos());
     let now = now_ns();
     let outputs = {
         let mut st = lock(state);
         let first = *st.first_arrival.get_or_insert(now);
         st.report.window_ns = now.saturating_sub(first);
-        st.ages.record(now.saturating_sub(sample.t_acq_ns) / 1000);
-        let gap = match st.last_seq.get(sample.joint as usize) {
-            Some(Some(l)) if sample.seq > *l => sample.seq - l - 1,
-            _ => 0,
-        };
-        st.report.lost += gap;
-        if let Some(last) = st.last_seq.get_mut(sample.joint as usize) {
-            *last = Some(sample.seq);
+        for sample in &samples {
+            st.ages.record(now.saturating_sub(sample.t_acq_ns) / 1000);
+            let gap = match st.last_seq.get(sample.joint as usize) {
+                Some(Some(l)) if sample.seq > *l => sample.seq - l - 1,
+                _ => 0,
+            };
+            st.report.lost += gap;
+            if let Some(last) = st.last_seq.get_mut(sample.joint as usize) {
+                *last = Some(sample.seq);
+            }
         }
-        st.core.on_sample_from(key_joint, sample, now)
+        match (board, samples.as_slice()) {
+            (false, [sample]) => st.core.on_sample_from(key_name, *sample, now),
+            _ => st
+                .core
+                .on_board_sample_from(key_name, BoardSample { samples }, now),
+        }
     };
     let (failed, first_out) = pubs.publish(outputs);
     let done = now_ns();
@@ -219,7 +235,19 @@ pub async fn run(
         samples.push(
             session
                 .declare_subscriber(keys.joint_sample(name)?)
-                .callback(move |s| on_sample(&state, &pubs, &s))
+                .callback(move |s| on_sample(&state, &pubs, &s, false))
+                .await
+                .map_err(z)?,
+        );
+    }
+    // Boards of several joints: one message per tick each, few enough that one wildcard
+    // subscription costs nothing measurable (their names come from the agents' plan).
+    {
+        let (state, pubs) = (state.clone(), pubs.clone());
+        samples.push(
+            session
+                .declare_subscriber(keys.all_board_samples())
+                .callback(move |s| on_sample(&state, &pubs, &s, true))
                 .await
                 .map_err(z)?,
         );

@@ -3,13 +3,16 @@
 //!
 //! One agent serves one joint board: usually one joint, but a board that drives several
 //! joints on one bus (paper B's U2D2 drives all eight servos) serves them all from one
-//! session and one loop — each joint keeps its own guard, keys and liveliness token.
+//! session and one loop — each joint keeps its own guard, command and status keys and
+//! liveliness token, and each tick's samples leave as one board message (kind 9 on
+//! `rig/<rig>/board/<board>/sample`): one message per tick instead of one per joint.
 
 use std::time::Duration;
 
 use rig_config::{JointKind, RigConfig};
 use rig_protocol::{
-    JointCommand, JointSample, JointState, JointStatus, Keys, SimTruth, decode, encode,
+    BoardSample, JointCommand, JointSample, JointState, JointStatus, Keys, Message, SimTruth,
+    decode, encode,
 };
 use rig_runtime::{NetOverrides, now_ns, open, publisher, zenoh, zenoh_err as z};
 use thiserror::Error;
@@ -129,7 +132,9 @@ struct Served {
     k: usize,
     guard: JointGuard,
     limits: GuardLimits,
-    sample_pub: zenoh::pubsub::Publisher<'static>,
+    /// The joint's own sample key: a board of one joint (a board of several sends one board
+    /// message per tick instead).
+    sample_pub: Option<zenoh::pubsub::Publisher<'static>>,
     truth_pub: zenoh::pubsub::Publisher<'static>,
     commands: zenoh::pubsub::Subscriber<zenoh::handlers::FifoChannelHandler<zenoh::sample::Sample>>,
     status_key: String,
@@ -231,8 +236,9 @@ impl Served {
         Ok(())
     }
 
-    /// Publishes joint's reading taken at grid time `t_acq` (and the simulated truth).
-    async fn publish(&mut self, t_acq: u64, r: &Reading) -> Result<(), AgentError> {
+    /// The sample of this joint's reading taken at grid time `t_acq`, or None when the
+    /// protocol refuses it (a non-finite reading: counted and said at the 1st, 10th, 100th…).
+    fn sample(&mut self, t_acq: u64, r: &Reading) -> Option<JointSample> {
         self.report.samples += 1;
         self.actuator = r.actuator;
         let sample = JointSample {
@@ -246,8 +252,8 @@ impl Served {
             motor_torque_nm: r.motor_torque_nm,
             stiffness_motor_rad: r.stiffness_motor_rad,
         };
-        match encode(&sample) {
-            Ok(bytes) => self.sample_pub.put(bytes).await.map_err(z)?,
+        match sample.validate() {
+            Ok(()) => Some(sample),
             Err(e) => {
                 if let Some(n) = self.unsent.count() {
                     eprintln!(
@@ -255,8 +261,13 @@ impl Served {
                         self.name
                     );
                 }
+                None
             }
         }
+    }
+
+    /// Publishes the simulated truth of the reading taken at `t_acq` (simulated boards only).
+    async fn truth(&self, t_acq: u64, r: &Reading) -> Result<(), AgentError> {
         if let Some(t) = r.truth {
             let truth = SimTruth {
                 joint: self.index,
@@ -273,6 +284,40 @@ impl Served {
         }
         Ok(())
     }
+}
+
+/// Publishes one tick's readings: each joint's sample on its key (a board of one joint), or
+/// all of them as one board message; then the simulated truths.
+async fn publish_tick(
+    served: &mut [Served],
+    board_pub: Option<&zenoh::pubsub::Publisher<'static>>,
+    t_acq: u64,
+    readings: &[Reading],
+) -> Result<(), AgentError> {
+    let mut samples = Vec::with_capacity(served.len());
+    for (joint, r) in served.iter_mut().zip(readings) {
+        let Some(sample) = joint.sample(t_acq, r) else {
+            continue;
+        };
+        match &joint.sample_pub {
+            Some(p) => {
+                // Validated above: encoding cannot refuse it.
+                if let Ok(bytes) = encode(&sample) {
+                    p.put(bytes).await.map_err(z)?;
+                }
+            }
+            None => samples.push(sample),
+        }
+    }
+    if let (Some(p), false) = (board_pub, samples.is_empty())
+        && let Ok(bytes) = encode(&BoardSample { samples })
+    {
+        p.put(bytes).await.map_err(z)?;
+    }
+    for (joint, r) in served.iter().zip(readings) {
+        joint.truth(t_acq, r).await?;
+    }
+    Ok(())
 }
 
 /// Opens the board of joints `js` (indices into the config): a simulation inline, hardware
@@ -361,6 +406,17 @@ pub async fn run(
         }
     };
     let session = open(cfg, &opts.net, &who).await?;
+    // A board of several joints sends each tick as one message on its board key.
+    let board_pub = match opts.joints.len() {
+        1 => None,
+        _ => Some(
+            publisher(
+                &session,
+                keys.board_sample(&rig_config::board_name(cfg, &opts.joints))?,
+            )
+            .await?,
+        ),
+    };
     let mut served = Vec::new();
     for (k, (name, &j)) in opts.joints.iter().zip(&js).enumerate() {
         let limits = guard_limits(cfg, j);
@@ -370,7 +426,10 @@ pub async fn run(
             k,
             guard: JointGuard::new(j as u16, limits, f64::NAN),
             limits,
-            sample_pub: publisher(&session, keys.joint_sample(name)?).await?,
+            sample_pub: match board_pub {
+                None => Some(publisher(&session, keys.joint_sample(name)?).await?),
+                Some(_) => None,
+            },
             truth_pub: publisher(&session, keys.sim_truth(name)?).await?,
             commands: session
                 .declare_subscriber(keys.joint_command(name)?)
@@ -422,7 +481,15 @@ pub async fn run(
         joint.status(&session, JointState::Ok, text).await?;
     }
 
-    let result = sample_loop(&opts, &session, &mut served, &mut board, shutdown).await;
+    let result = sample_loop(
+        &opts,
+        &session,
+        &mut served,
+        board_pub.as_ref(),
+        &mut board,
+        shutdown,
+    )
+    .await;
     if let Err(e) = result {
         return Err(fault(&session, &mut served, Some(&mut board), e).await);
     }
@@ -453,6 +520,7 @@ async fn sample_loop(
     opts: &AgentOptions,
     session: &zenoh::Session,
     served: &mut [Served],
+    board_pub: Option<&zenoh::pubsub::Publisher<'static>>,
     board: &mut BoardRunner,
     shutdown: impl std::future::Future<Output = ()>,
 ) -> Result<(), AgentError> {
@@ -488,9 +556,7 @@ async fn sample_loop(
             let t_acq = t * period_ns;
             let t_world = t_acq.saturating_sub(opts.start_ns) as f64 * 1e-9;
             let readings = board.call(move |b| b.read(t_world, dt)).await??;
-            for (joint, r) in served.iter_mut().zip(&readings) {
-                joint.publish(t_acq, r).await?;
-            }
+            publish_tick(served, board_pub, t_acq, &readings).await?;
         }
     }
     Ok(())

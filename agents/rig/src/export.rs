@@ -4,14 +4,15 @@
 //! `rig-wire/1` channel) is flattened into columns, in the order of its fields: a field keeps
 //! its name, which carries its unit (`deflection_rad`, `t_acq_ns`); a nested field is `outer.inner`, a list's items
 //! `name.0`, `name.1`, …; an absent optional value is an empty cell. The first column is the
-//! recorder's `log_time_ns`. A payload that was not a rig message is written as hex in
-//! `wire_hex`, so nothing in the recording is lost.
+//! recorder's `log_time_ns`. A board's tick (kind 9, on `…/board/<b>/sample`) is one row per
+//! joint sample, with the same columns as a joint's own sample topic. A payload that was not a
+//! rig message is written as hex in `wire_hex`, so nothing in the recording is lost.
 
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 
-use rig_protocol::decode_any;
 use rig_protocol::json::to_json;
+use rig_protocol::{Topic, decode_any};
 use serde::de::{Deserialize, Deserializer, MapAccess, SeqAccess, Visitor};
 
 use crate::error::CliError;
@@ -147,17 +148,16 @@ fn flatten(prefix: &str, node: &Node, out: &mut Vec<(String, String)>) {
     }
 }
 
-/// The cells of one stored message.
-fn cells(m: &Stored) -> Result<Vec<(String, String)>, String> {
-    let mut out = vec![("log_time_ns".to_string(), m.log_time.to_string())];
+/// The rows of one stored message: one, or one per joint sample of a board's tick.
+fn rows(m: &Stored) -> Result<Vec<Vec<(String, String)>>, String> {
+    let time = || ("log_time_ns".to_string(), m.log_time.to_string());
     let json = match m.encoding.as_str() {
         JSON => serde_json::from_slice::<Node>(&m.data).map_err(|e| format!("not JSON: {e}"))?,
         WIRE => match decode_any(&m.data) {
             Ok(msg) => serde_json::from_slice::<Node>(&to_json(&msg)).map_err(|e| e.to_string())?,
             Err(_) => {
                 let hex: String = m.data.iter().map(|b| format!("{b:02x}")).collect();
-                out.push(("wire_hex".to_string(), hex));
-                return Ok(out);
+                return Ok(vec![vec![time(), ("wire_hex".to_string(), hex)]]);
             }
         },
         other => {
@@ -166,8 +166,19 @@ fn cells(m: &Stored) -> Result<Vec<(String, String)>, String> {
             ));
         }
     };
-    flatten("", &json, &mut out);
-    Ok(out)
+    let row = |node: &Node| {
+        let mut out = vec![time()];
+        flatten("", node, &mut out);
+        out
+    };
+    let board = matches!(Topic::parse(&m.topic), Ok(Topic::BoardSample { .. }));
+    Ok(match (board, &json) {
+        (true, Node::Object(fields)) => match fields.as_slice() {
+            [(name, Node::List(samples))] if name == "samples" => samples.iter().map(row).collect(),
+            _ => vec![row(&json)],
+        },
+        _ => vec![row(&json)],
+    })
 }
 
 /// A file name for `topic`: `/` becomes `.`, anything but letters, digits, `.`, `_`, `-`
@@ -204,7 +215,7 @@ pub fn run(a: &Args) -> Result<(), CliError> {
     }
     let mut tables: BTreeMap<&str, Table> = BTreeMap::new();
     for m in &stored {
-        let row = cells(m).map_err(|e| {
+        let rows = rows(m).map_err(|e| {
             CliError::Invalid(format!(
                 "{}: message {} on {}: {e}",
                 a.file.display(),
@@ -212,7 +223,10 @@ pub fn run(a: &Args) -> Result<(), CliError> {
                 m.topic
             ))
         })?;
-        tables.entry(m.topic.as_str()).or_default().push(row);
+        let table = tables.entry(m.topic.as_str()).or_default();
+        for row in rows {
+            table.push(row);
+        }
     }
     std::fs::create_dir_all(&a.dir)?;
     let mut names: BTreeMap<String, &str> = BTreeMap::new();
@@ -284,6 +298,45 @@ mod tests {
         t.push(vec![("b".into(), "2".into()), ("a".into(), "3".into())]);
         assert_eq!(t.columns, ["a", "b"]);
         assert_eq!(t.rows[1], [(1, "2".to_string()), (0, "3".to_string())]);
+    }
+
+    #[test]
+    fn a_boards_tick_is_one_row_per_joint_sample_with_a_joint_samples_columns() {
+        let sample = rig_protocol::JointSample {
+            joint: 1,
+            seq: 3,
+            t_acq_ns: 1_700_000_000_000_000_000,
+            motor_rad: 0.5,
+            deflection_rad: -0.01,
+            pivot_m: Some(0.009),
+            torque_nm: None,
+            motor_torque_nm: None,
+            stiffness_motor_rad: None,
+        };
+        let other = rig_protocol::JointSample {
+            joint: 2,
+            torque_nm: Some(0.25),
+            ..sample
+        };
+        let board = rig_protocol::BoardSample {
+            samples: vec![sample, other],
+        };
+        let stored = |topic: &str, msg: rig_protocol::AnyMessage| Stored {
+            topic: topic.into(),
+            encoding: JSON.into(),
+            schema: String::new(),
+            sequence: 0,
+            log_time: 42,
+            data: to_json(&msg),
+        };
+        let one = rows(&stored("rig/r/joint/j1/sample", sample.into())).unwrap();
+        let tick = rows(&stored("rig/r/board/b/sample", board.into())).unwrap();
+        assert_eq!(tick.len(), 2);
+        assert_eq!(tick[0], one[0]);
+        let columns = |r: &[(String, String)]| r.iter().map(|c| c.0.clone()).collect::<Vec<_>>();
+        assert_eq!(columns(&tick[1]), columns(&one[0]));
+        assert!(tick[1].contains(&("torque_nm".into(), "0.25".into())));
+        assert!(tick[1].contains(&("log_time_ns".into(), "42".into())));
     }
 
     #[test]

@@ -6,7 +6,7 @@ use std::path::Path;
 
 use rig_model::identify::Run;
 use rig_model::identify::signals::median_step;
-use rig_protocol::{JointSample, decode};
+use rig_protocol::{JointEstimate, JointSample, JointStatus, Topic, decode, decode_samples};
 use serde::Serialize;
 
 use crate::error::CliError;
@@ -273,13 +273,38 @@ fn read_mcap(path: &Path, joint: Option<&str>) -> Result<(Run, Sampling), CliErr
     let name = path.display().to_string();
     let bad = |m: String| CliError::Invalid(format!("{name}: {m}"));
     let (msgs, _) = crate::record::read_all(path)?;
+    // A board of several joints sends its ticks on its board key (kind 9), each sample naming
+    // its joint by index: the names come from the joints' own keys (statuses, estimates).
+    let mut name_of: BTreeMap<u16, String> = BTreeMap::new();
+    for m in &msgs {
+        let index = match Topic::parse(&m.topic) {
+            Ok(Topic::JointStatus { joint, .. }) => decode::<JointStatus>(&m.data)
+                .ok()
+                .map(|s| (s.joint, joint)),
+            Ok(Topic::JointEstimate { joint, .. }) => decode::<JointEstimate>(&m.data)
+                .ok()
+                .map(|e| (e.joint, joint)),
+            _ => None,
+        };
+        if let Some((i, name)) = index {
+            name_of.entry(i).or_insert(name);
+        }
+    }
     let mut by_joint: BTreeMap<String, Vec<JointSample>> = BTreeMap::new();
     for m in &msgs {
-        if let Some(rest) = m.topic.strip_suffix("/sample")
-            && let Some(j) = rest.rsplit('/').next()
-            && let Ok(s) = decode::<JointSample>(&m.data)
-        {
-            by_joint.entry(j.to_string()).or_default().push(s);
+        let on_key = match Topic::parse(&m.topic) {
+            Ok(Topic::JointSample { joint, .. }) => Some(joint),
+            Ok(Topic::BoardSample { .. }) => None,
+            _ => continue,
+        };
+        for s in decode_samples(&m.data).unwrap_or_default() {
+            let j = on_key.clone().unwrap_or_else(|| {
+                name_of
+                    .get(&s.joint)
+                    .cloned()
+                    .unwrap_or_else(|| format!("#{}", s.joint))
+            });
+            by_joint.entry(j).or_default().push(s);
         }
     }
     let names: Vec<String> = by_joint.keys().cloned().collect();

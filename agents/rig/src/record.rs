@@ -20,7 +20,9 @@ use rig_estimator::core::{CoreTiming, EstimatorCore, Output};
 use rig_protocol::json::{
     encode_any, from_json, json_schema, kind_of_schema, schema_name, to_json,
 };
-use rig_protocol::{EeEstimate, JointEstimate, JointSample, Keys, Kind, decode, decode_any};
+use rig_protocol::{
+    EeEstimate, JointEstimate, JointSample, Keys, Kind, decode, decode_any, decode_samples,
+};
 use rig_runtime::{NetArgs, RunFor, now_ns, open, tokio_runtime, zenoh_err};
 
 use crate::error::CliError;
@@ -462,10 +464,9 @@ fn estimate_offline(
             {
                 live.insert(e.t_ns, f);
             }
-        } else if m.topic.ends_with("/sample")
-            && let Ok(s) = decode::<JointSample>(&m.data)
-        {
-            samples.push(s);
+        } else if m.topic.ends_with("/sample") {
+            // A joint's sample, or a board's tick of several joints.
+            samples.extend(decode_samples(&m.data).unwrap_or_default());
         }
     }
     samples.sort_by_key(|s| (s.t_acq_ns, s.joint));

@@ -12,8 +12,8 @@ use std::time::Duration;
 use rig_config::RigConfig;
 use rig_joint::agent::BackendKind;
 use rig_protocol::{
-    AllocationRequest, AllocationResult, AllocationTarget, EeEstimate, JointEstimate, JointSample,
-    SimTruth, decode, encode,
+    AllocationRequest, AllocationResult, AllocationTarget, EeEstimate, JointEstimate, SimTruth,
+    decode, decode_samples, encode,
 };
 use rig_runtime::{NetArgs, RunFor, now_ns, tokio_runtime, zenoh_err};
 
@@ -117,7 +117,7 @@ async fn up(cfg: RigConfig, args: &Args) -> Result<(), CliError> {
     let (session, keys) = (hub_up.session.clone(), hub_up.keys.clone());
     let subs = (
         session
-            .declare_subscriber(keys.all_joint_samples())
+            .declare_subscriber(keys.all_samples())
             .await
             .map_err(zenoh_err)?,
         session
@@ -190,8 +190,10 @@ async fn up(cfg: RigConfig, args: &Args) -> Result<(), CliError> {
         tokio::select! {
             _ = &mut ctrl_c => break,
             _ = tokio::time::sleep_until(sleep_until) => break,
-            s = subs.0.recv_async() => if let Ok(s) = s && let Ok(m) = decode::<JointSample>(&s.payload().to_bytes()) {
-                *w.samples.entry(m.joint).or_default() += 1;
+            s = subs.0.recv_async() => if let Ok(s) = s && let Ok(ms) = decode_samples(&s.payload().to_bytes()) {
+                for m in ms {
+                    *w.samples.entry(m.joint).or_default() += 1;
+                }
                 if goal_due && w.samples.len() == cfg.joints.len() {
                     goal_due = false;
                     if let Ok(bytes) = encode(&goal) {
