@@ -315,9 +315,16 @@ fn three_machines_in_network_namespaces_run_the_plan_over_mutual_tls_and_estimat
     }
     // Every pivot went where the allocator said (the commands crossed the veths), from
     // somewhere else (it was the command that moved it).
+    // Each chain's two joints are one board: a board message per tick, one CSV row per joint.
     for (k, want) in pivots.iter().enumerate() {
-        let c = csv_columns(&csv.join(format!("rig.parallel.joint.j{}.sample.csv", k + 1)));
-        let pivot: Vec<f64> = c["pivot_m"].iter().filter_map(|v| v.parse().ok()).collect();
+        let chain = 1 + k / 2;
+        let c = csv_columns(&csv.join(format!("rig.parallel.board.chain{chain}.sample.csv")));
+        let pivot: Vec<f64> = c["pivot_m"]
+            .iter()
+            .zip(&c["joint"])
+            .filter(|(_, j)| **j == k.to_string())
+            .filter_map(|(v, _)| v.parse().ok())
+            .collect();
         let (first, last) = (pivot[0], pivot[pivot.len() - 1]);
         eprintln!(
             "j{}: pivot {:.3} mm at the start, {:.3} mm at the end, {:.3} mm allocated",

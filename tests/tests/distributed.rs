@@ -338,7 +338,9 @@ fn a_recording_replays_offline_to_the_same_estimates_and_survives_a_killed_recor
     wait_alive(&rec_at, &recorders[..1]);
     wait_alive(&killed_at, &recorders[1..]);
     let start = now_ns();
-    let mut joints: Vec<Proc> = ["j1", "j2", "j3", "j4"]
+    // j1 and j2 on one board (a board message per tick), j3 and j4 each on its own (a sample
+    // per joint): the recording holds both, and everything reads both.
+    let mut joints: Vec<Proc> = ["j1,j2", "j3", "j4"]
         .iter()
         .map(|j| joint_linked(j, &[&hub, &rec_at, &killed_at], start))
         .collect();
@@ -407,6 +409,23 @@ fn a_recording_replays_offline_to_the_same_estimates_and_survives_a_killed_recor
     // Read by code that is not ours: Python's `mcap` package decodes every channel from its
     // schema alone; `rig export` writes the same messages as one CSV per topic.
     python_and_csv_read_the_same_messages(&full, &dir.join("csv"));
+    // `rig identify` finds a board's joint by its name (from the joint's own status key):
+    // here it has samples, and no torque sensor to identify from.
+    let o = Command::new(bin("rig"))
+        .args(["identify", "--data"])
+        .arg(&full)
+        .arg("--report")
+        .arg(dir.join("identify.json"))
+        .args(["--joint", "j2"])
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(!o.status.success(), "{err}");
+    assert!(
+        err.contains("joint \"j2\": 0 samples carry a torque-sensor reading (of ")
+            && !err.contains("(of 0)"),
+        "{err}"
+    );
     std::fs::remove_dir_all(&dir).ok();
 }
 
@@ -431,8 +450,28 @@ fn python_and_csv_read_the_same_messages(file: &Path, csv_dir: &Path) {
         let topic = v["topic"].as_str().unwrap().to_string();
         by_topic.entry(topic).or_default().push(v);
     }
-    for kind in ["rig.JointSample", "rig.JointEstimate", "rig.EeEstimate"] {
+    for kind in [
+        "rig.JointSample",
+        "rig.BoardSample",
+        "rig.JointEstimate",
+        "rig.EeEstimate",
+    ] {
         assert!(schemas.contains(kind), "{kind} not in {schemas:?}");
+    }
+    // A board's tick is one CSV row per joint sample, with a joint sample's columns.
+    for (topic, msgs) in by_topic.iter_mut() {
+        if topic.contains("/board/") {
+            *msgs = msgs
+                .iter()
+                .flat_map(|m| {
+                    let samples = m["message"]["samples"].as_array().unwrap().clone();
+                    assert!(samples.len() == 2, "{m}");
+                    samples.into_iter().map(|sample| {
+                        serde_json::json!({"log_time_ns": m["log_time_ns"], "message": sample})
+                    })
+                })
+                .collect();
+        }
     }
     let o = Command::new(bin("rig"))
         .arg("export")

@@ -5,7 +5,8 @@
 //! - a peer without a certificate, with a plain TCP link, or with a certificate of another
 //!   lab's CA cannot even connect;
 //! - a peer with the **estimator's** certificate commands j1's pivot to the other end of its
-//!   travel for 1.5 s: the pivot does not move; the same peer's forged j1 samples reach no one;
+//!   travel for 1.5 s: the pivot does not move; the same peer's forged j1 samples (on j1's key
+//!   and as a board message) reach no one;
 //! - the **allocator's** certificate, sending the very same goal, moves the pivot there.
 //!
 //! Bounded: every wait has a deadline (the whole test takes about 10 s).
@@ -161,6 +162,14 @@ fn only_the_allocators_certificate_moves_a_pivot_and_no_one_outside_the_lab_can_
             })
             .await
             .unwrap();
+        // Board messages heard on any board key (j1 is a board of one: none are real).
+        let board_heard: Arc<Mutex<usize>> = Arc::default();
+        let b = board_heard.clone();
+        let _boards = watcher
+            .declare_subscriber(keys.all_board_samples())
+            .callback(move |_| *b.lock().unwrap() += 1)
+            .await
+            .unwrap();
         tokio::time::sleep(Duration::from_millis(500)).await;
         let start = last_pivot(&heard);
 
@@ -231,6 +240,14 @@ fn only_the_allocators_certificate_moves_a_pivot_and_no_one_outside_the_lab_can_
                 .put(keys.joint_sample("j1").unwrap(), encode(&forged).unwrap())
                 .await
                 .unwrap();
+            // …and as a board's tick, on a board key no certificate but a machine's may use.
+            let board = BoardSample {
+                samples: vec![forged],
+            };
+            estimator
+                .put(keys.board_sample("j1").unwrap(), encode(&board).unwrap())
+                .await
+                .unwrap();
             tokio::time::sleep(Duration::from_millis(20)).await;
         }
         let after_forgery = last_pivot(&heard);
@@ -247,6 +264,11 @@ fn only_the_allocators_certificate_moves_a_pivot_and_no_one_outside_the_lab_can_
             .filter(|s| s.seq >= FORGED_SEQ)
             .count();
         assert_eq!(forged_heard, 0, "the estimator's forged j1 samples were believed");
+        assert_eq!(
+            *board_heard.lock().unwrap(),
+            0,
+            "the estimator's forged board message reached a subscriber"
+        );
 
         // The allocator's certificate, the same goal: the pivot goes there.
         let allocator = session_as(&cfg, &hub, Identity::Allocator).await;
