@@ -40,8 +40,9 @@ pub enum Topology {
     Bench,
 }
 
-/// Most joints a bench rig may have.
-pub const MAX_BENCH_JOINTS: usize = 256;
+/// Most joints a bench rig may have: as many as one board message carries (`rig bench
+/// throughput` finds where one estimator host saturates below it).
+pub const MAX_BENCH_JOINTS: usize = rig_protocol::MAX_BOARD_JOINTS;
 
 impl Topology {
     /// How many joints the topology takes: (fewest, most).

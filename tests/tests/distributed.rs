@@ -628,6 +628,25 @@ fn bench_latency_and_throughput_report_consistent_figures() {
     assert!(u(&v, &["lost"]) * 100 <= sent, "more than 1 % lost: {v}");
     let rate = v["samples_per_s"].as_f64().unwrap();
     assert!((7_600.0..=8_400.0).contains(&rate), "{v}");
+    // Where the CPU goes: per sample, and by thread (each within the machine's cores), the
+    // threads adding up to the per-sample figure (the smallest ones left out).
+    let per_sample = v["cpu_us_per_sample"].as_f64().unwrap();
+    let cores: Vec<f64> = v["threads"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|t| t["cores"].as_f64().unwrap())
+        .collect();
+    let ncpu = std::thread::available_parallelism().unwrap().get() as f64;
+    assert!(
+        !cores.is_empty() && cores.iter().all(|c| *c > 0.0 && *c <= ncpu + 0.1),
+        "{v}"
+    );
+    let from_threads = cores.iter().sum::<f64>() * 1e6 / rate;
+    assert!(
+        per_sample > 0.0 && (from_threads - per_sample).abs() <= 0.1 * per_sample + 0.05,
+        "{from_threads} µs from the threads against {per_sample}: {v}"
+    );
 }
 
 /// The `rerun` CLI of the version the rig's SDK writes (`cargo xtask test` installs it).

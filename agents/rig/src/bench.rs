@@ -15,6 +15,7 @@
 //!   from `/proc` ten times a second.
 //! - `rig bench bus`: the `dynamixel` backend's read cycle ([`crate::board`]).
 
+use std::collections::BTreeMap;
 use std::sync::Arc;
 use std::sync::atomic::{AtomicU64, Ordering};
 use std::time::{Duration, Instant};
@@ -94,7 +95,7 @@ enum Boards {
 
 #[derive(Debug, clap::Args)]
 struct ThroughputArgs {
-    /// Simulated joints on the board (1 to 256)
+    /// Simulated joints on the board (1 to 1024, as many as one board message carries)
     #[arg(long, default_value_t = 64)]
     joints: usize,
     /// Sample rate of every joint [Hz]
@@ -185,6 +186,18 @@ struct ThroughputReport {
     /// the start and at the end [kB]: flat over a long run means no growth.
     rss_start_kb: Option<u64>,
     rss_end_kb: Option<u64>,
+    /// CPU of this whole process (estimator host, load generator, Zenoh) per sample received
+    /// [µs], measured from 2 s after the start (Linux).
+    cpu_us_per_sample: Option<f64>,
+    /// Each thread's CPU over that window, in cores (1.0: one core all the time), busiest
+    /// first: where it saturates.
+    threads: Vec<ThreadCpu>,
+}
+
+#[derive(Debug, Serialize)]
+struct ThreadCpu {
+    name: String,
+    cores: f64,
 }
 
 fn zerr<E: Into<zenoh::Error>>(e: E) -> CliError {
@@ -280,6 +293,36 @@ struct RigRun {
     /// This process's resident set (estimator host, boards, observer) 2 s after the start
     /// and at the end of the run [kB] (None where /proc cannot be read).
     rss_kb: Option<(u64, u64)>,
+    /// CPU time of each thread (by name) from 2 s after the start to the last reading while
+    /// the boards ran, and that window's length.
+    cpu: Option<(BTreeMap<String, u64>, Duration)>,
+}
+
+/// CPU time each of this process's threads has used [ns], summed by thread name (Zenoh's
+/// `rx-0`, `tx-0`, tokio's workers…), from `/proc/self/task/*/schedstat` (Linux; empty
+/// elsewhere).
+fn threads_cpu_ns() -> BTreeMap<String, u64> {
+    let mut by_name = BTreeMap::new();
+    let Ok(tasks) = std::fs::read_dir("/proc/self/task") else {
+        return by_name;
+    };
+    for task in tasks.flatten() {
+        let dir = task.path();
+        let (Ok(comm), Ok(stat)) = (
+            std::fs::read_to_string(dir.join("comm")),
+            std::fs::read_to_string(dir.join("schedstat")),
+        ) else {
+            continue;
+        };
+        if let Some(ns) = stat
+            .split_whitespace()
+            .next()
+            .and_then(|v| v.parse::<u64>().ok())
+        {
+            *by_name.entry(comm.trim().to_string()).or_default() += ns;
+        }
+    }
+    by_name
 }
 
 /// Runs the estimator host (the hub) and the joint boards for `duration`; an observer
@@ -331,14 +374,19 @@ fn run_rig(
         let pb = crate::progress::bar(duration.as_secs().max(1), label);
         let t0 = Instant::now();
         let (mut rss_start, mut rss_end) = (None, None);
+        let (mut cpu_start, mut cpu_end) = (None, None);
         while rig.boards_running() {
             tokio::time::sleep(Duration::from_millis(200)).await;
             pb.set_position(t0.elapsed().as_secs().min(duration.as_secs()));
             let rss = resident_kb(std::process::id()).map(|(rss, _)| rss);
             if rss_start.is_none() && t0.elapsed() >= Duration::from_secs(2) {
                 rss_start = rss;
+                cpu_start = Some((threads_cpu_ns(), Instant::now()));
             }
             rss_end = rss.or(rss_end);
+            if cpu_start.is_some() {
+                cpu_end = Some((threads_cpu_ns(), Instant::now()));
+            }
         }
         pb.finish_and_clear();
         // The last samples arrive before the estimator stops.
@@ -348,6 +396,16 @@ fn run_rig(
             estimator: reports.estimator,
             observed: observed.load(Ordering::Relaxed),
             rss_kb: rss_start.zip(rss_end),
+            cpu: cpu_start.zip(cpu_end).map(|((a, t_a), (b, t_b))| {
+                let used = b
+                    .into_iter()
+                    .map(|(name, ns)| {
+                        let before = a.get(&name).copied().unwrap_or(0);
+                        (name, ns.saturating_sub(before))
+                    })
+                    .collect();
+                (used, t_b - t_a)
+            }),
         })
     })
 }
@@ -514,6 +572,22 @@ fn throughput(a: &ThroughputArgs) -> Result<(), CliError> {
         duration_s: duration.as_secs_f64(),
         rss_start_kb: r.rss_kb.map(|r| r.0),
         rss_end_kb: r.rss_kb.map(|r| r.1),
+        cpu_us_per_sample: r.cpu.as_ref().and_then(|(used, window)| {
+            let samples = e.core.samples as f64 / secs * window.as_secs_f64();
+            (samples > 0.0).then(|| used.values().sum::<u64>() as f64 * 1e-3 / samples)
+        }),
+        threads: r.cpu.as_ref().map_or_else(Vec::new, |(used, window)| {
+            let mut t: Vec<ThreadCpu> = used
+                .iter()
+                .map(|(name, ns)| ThreadCpu {
+                    name: name.clone(),
+                    cores: *ns as f64 * 1e-9 / window.as_secs_f64().max(1e-9),
+                })
+                .filter(|t| t.cores >= 0.005)
+                .collect();
+            t.sort_by(|a, b| b.cores.total_cmp(&a.cores));
+            t
+        }),
     };
     if a.json {
         println!("{}", serde_json::to_string_pretty(&report).map_err(io)?);
@@ -541,6 +615,17 @@ fn throughput(a: &ThroughputArgs) -> Result<(), CliError> {
                 "memory of this process (estimator host and load generator): {:.1} MB after 2 s, {:.1} MB at the end",
                 a as f64 / 1024.0,
                 b as f64 / 1024.0
+            );
+        }
+        if let Some(us) = report.cpu_us_per_sample {
+            let threads: Vec<String> = report
+                .threads
+                .iter()
+                .map(|t| format!("{} {:.2}", t.name, t.cores))
+                .collect();
+            println!(
+                "CPU of this process {us:.2} µs per sample; by thread, in cores: {}",
+                threads.join(", ")
             );
         }
     }
