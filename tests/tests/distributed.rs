@@ -600,16 +600,18 @@ fn bench_latency_and_throughput_report_consistent_figures() {
         observed * 100 >= (sent * 5 / 4) * 95,
         "{observed} observed: {v}"
     );
-    // The sweep: four samples' bytes, 1 KiB, 64 KiB; moving 64 KiB takes longer than a sample.
+    // The sweep: a board message of the example's four joints, 1 KiB, 64 KiB; moving 64 KiB
+    // takes longer than a sample.
     let sweep = v["sweep"].as_array().unwrap();
     let sizes: Vec<u64> = sweep
         .iter()
         .map(|p| p["payload_bytes"].as_u64().unwrap())
         .collect();
     assert_eq!(sizes[1..], [1024, 65536], "{v}");
-    assert!(
-        sizes[0] > 4 * 8 && sizes[0] < 1024,
-        "four samples' bytes: {v}"
+    assert_eq!(
+        sizes[0],
+        8 + 2 + 4 * 68,
+        "a board message of four joints: {v}"
     );
     let big = sweep[2]["zenoh_rtt_us"]["p50"].as_u64().unwrap();
     assert!(

@@ -24,7 +24,7 @@ use rig_config::{RigConfig, Topology};
 use rig_estimator::edge::EstimatorReport;
 use rig_estimator::histogram::LatencySummary;
 use rig_joint::agent::{AgentReport, BackendKind};
-use rig_protocol::{JointSample, encode};
+use rig_protocol::{BoardSample, JointSample, encode};
 use rig_runtime::cli::positive_seconds;
 use rig_runtime::zenoh::{self, Wait};
 use rig_runtime::{NetOverrides, now_ns, tokio_runtime, zenoh_config};
@@ -76,9 +76,9 @@ struct LatencyArgs {
     /// Round trips timed for the raw Zenoh figure (after 500 warm-up ones)
     #[arg(long, default_value_t = 10_000)]
     pings: usize,
-    /// Also time raw round trips of other payload sizes — four samples' bytes (what one
-    /// message for a board of four joints would carry), 1 KiB, 64 KiB — as the peers' tables
-    /// do (dora, zenoh's z_ping)
+    /// Also time raw round trips of other payload sizes — a board message of the config's
+    /// joints (kind 9, what one board sends per tick), 1 KiB, 64 KiB — as the peers' tables do
+    /// (dora, zenoh's z_ping)
     #[arg(long)]
     sweep: bool,
     /// Print one JSON object instead of the table
@@ -417,7 +417,7 @@ fn latency(a: &LatencyArgs) -> Result<(), CliError> {
     }
     let cfg = crate::config::load_or_parallel(&a.config)?;
     // The ping payload is a real encoded sample, so both figures move the same bytes.
-    let payload = encode(&JointSample {
+    let sample = JointSample {
         joint: 0,
         seq: 1,
         t_acq_ns: now_ns(),
@@ -427,6 +427,13 @@ fn latency(a: &LatencyArgs) -> Result<(), CliError> {
         torque_nm: None,
         motor_torque_nm: None,
         stiffness_motor_rad: None,
+    };
+    let payload = encode(&sample)?;
+    // One board's tick of every joint of the config, each sample as above.
+    let board = encode(&BoardSample {
+        samples: (0..cfg.joints.len().clamp(1, rig_protocol::MAX_BOARD_JOINTS) as u16)
+            .map(|joint| JointSample { joint, ..sample })
+            .collect(),
     })?;
     eprintln!(
         "rig bench latency: {} raw Zenoh round trips, then the rig ({} joints × {} Hz) for {:.0} s",
@@ -435,12 +442,12 @@ fn latency(a: &LatencyArgs) -> Result<(), CliError> {
         cfg.rate_hz,
         duration.as_secs_f64()
     );
-    let sample_bytes = payload.len();
     let rtt = zenoh_rtt(&cfg, a.pings, payload)?;
     let mut sweep = Vec::new();
     if a.sweep {
-        for size in [4 * sample_bytes, 1024, 64 * 1024] {
-            let rtt = zenoh_rtt(&cfg, a.pings, vec![0x5a; size])?;
+        for bytes in [board, vec![0x5a; 1024], vec![0x5a; 64 * 1024]] {
+            let size = bytes.len();
+            let rtt = zenoh_rtt(&cfg, a.pings, bytes)?;
             sweep.push(SweepPoint {
                 payload_bytes: size,
                 zenoh_rtt_us: LatencySummary::of(rtt),
