@@ -338,11 +338,14 @@ fn commands_watchdog_and_a_bus_fault_leave_the_servos_limp_and_say_why() {
             .unwrap();
         let pivot = Arc::new(Mutex::new(f64::NAN));
         let p = pivot.clone();
+        // The agent serves j1 and j2: one board message per tick, on its board's key.
         let _samples = z
-            .declare_subscriber("rig/parallel/joint/j1/sample")
+            .declare_subscriber("rig/parallel/board/*/sample")
             .callback(move |x| {
-                if let Ok(m) = decode::<JointSample>(&x.payload().to_bytes()) {
-                    *p.lock().unwrap() = m.pivot_m.unwrap_or(f64::NAN);
+                for m in decode_samples(&x.payload().to_bytes()).unwrap_or_default() {
+                    if m.joint == 0 {
+                        *p.lock().unwrap() = m.pivot_m.unwrap_or(f64::NAN);
+                    }
                 }
             })
             .await
