@@ -9,16 +9,24 @@
 //! window (tens of µs on one machine, 0.1–0.5 ms across a switched lab network) — enough to say
 //! that a board is off by a tick, not to synchronise it (chrony or PTP do that; docs/DEPLOY.md).
 //!
+//! What puts a sample into another tick than its peers' is a board's offset *against the other
+//! boards*, so with several joints an offset is judged against the median of the others': a
+//! board of 256 joints stamps each tick on the grid and sends it after reading them all, 0.5 ms
+//! later — a transit that every joint of it shares, not a clock to synchronise. A rig of one
+//! joint has no peers: its offset is judged as it is.
+//!
 //! Call contract: [`ClockWatch::on_sample`] with every accepted sample, in arrival order, with
 //! the host's time at arrival. It returns an event when a window closes with news: the first
-//! measurement of a joint, an offset going beyond half a tick, or coming back within 0.4 tick.
+//! measurement of a joint, an offset (against its peers') going beyond half a tick, or coming
+//! back within 0.4 tick. A joint whose peers have no measurement yet is judged at its next
+//! window.
 
 /// What a closed window says about a joint's clock.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum ClockEvent {
     /// The joint's first measured offset [ns] (positive: the board is ahead of this host).
     Measured { joint: usize, offset_ns: i64 },
-    /// The offset went beyond half a tick [ns].
+    /// The offset, against the peers' median, went beyond half a tick [ns] (the joint's own).
     Beyond { joint: usize, offset_ns: i64 },
     /// The offset came back within 0.4 tick [ns].
     Within { joint: usize, offset_ns: i64 },
@@ -59,6 +67,31 @@ impl ClockWatch {
         &self.offset_ns
     }
 
+    /// What `joint`'s offset is judged against: the median of the other joints' last
+    /// estimates; 0 for a rig of one joint; None while no other joint has one.
+    fn peers_median(&self, joint: usize) -> Option<i64> {
+        if self.offset_ns.len() == 1 {
+            return Some(0);
+        }
+        let mut peers: Vec<i64> = self
+            .offset_ns
+            .iter()
+            .enumerate()
+            .filter(|&(k, _)| k != joint)
+            .filter_map(|(_, o)| *o)
+            .collect();
+        if peers.is_empty() {
+            return None;
+        }
+        peers.sort_unstable();
+        let m = peers.len() / 2;
+        Some(if peers.len() % 2 == 1 {
+            peers[m]
+        } else {
+            peers[m - 1] / 2 + peers[m] / 2
+        })
+    }
+
     /// One accepted sample of `joint`, stamped `t_acq_ns`, arrived at `now_ns`.
     pub fn on_sample(&mut self, joint: usize, t_acq_ns: u64, now_ns: u64) -> Option<ClockEvent> {
         let delay = i128::from(now_ns) - i128::from(t_acq_ns);
@@ -74,7 +107,10 @@ impl ClockWatch {
         let offset_ns = w.min_delay_ns.saturating_neg();
         self.open[joint] = None;
         let first = self.offset_ns[joint].replace(offset_ns).is_none();
-        let off = offset_ns.unsigned_abs();
+        let Some(reference) = self.peers_median(joint) else {
+            return first.then_some(ClockEvent::Measured { joint, offset_ns });
+        };
+        let off = offset_ns.saturating_sub(reference).unsigned_abs();
         let event = if !self.beyond[joint] && off > self.half_tick_ns as u64 {
             self.beyond[joint] = true;
             Some(ClockEvent::Beyond { joint, offset_ns })
@@ -158,6 +194,48 @@ mod tests {
             vec![ClockEvent::Within {
                 joint: 0,
                 offset_ns: 240_000
+            }]
+        );
+    }
+
+    #[test]
+    fn joints_that_share_a_transit_are_not_off_and_one_board_off_against_its_peers_is() {
+        // Three joints of one big board: every sample arrives 0.6 ms after its stamp (the
+        // board reads all its joints before it sends the tick): over half a tick one way, but
+        // the same for all — nothing to say but the first measurements.
+        let mut w = ClockWatch::new(3, MS, 1000 * MS);
+        let mut events = Vec::new();
+        for k in 0..2002u64 {
+            let t = 10_000 * MS + k * MS;
+            for j in 0..3 {
+                events.extend(w.on_sample(j, t, t + 600_000));
+            }
+        }
+        assert_eq!(events.len(), 3, "{events:?}");
+        assert!(
+            events.iter().all(|e| matches!(
+                e,
+                ClockEvent::Measured {
+                    offset_ns: -600_000,
+                    ..
+                }
+            )),
+            "{events:?}"
+        );
+        // Joint 2's board goes 1 ms ahead of the others: beyond half a tick against them.
+        let mut events = Vec::new();
+        for k in 2002..3003u64 {
+            let t = 10_000 * MS + k * MS;
+            for j in 0..3 {
+                let ahead = if j == 2 { MS } else { 0 };
+                events.extend(w.on_sample(j, t + ahead, t + 600_000));
+            }
+        }
+        assert_eq!(
+            events,
+            vec![ClockEvent::Beyond {
+                joint: 2,
+                offset_ns: 400_000
             }]
         );
     }
