@@ -14,9 +14,7 @@ use rig_protocol::{
     BoardSample, JointCommand, JointSample, JointState, JointStatus, Keys, Message, SimTruth,
     decode, encode,
 };
-use rig_runtime::{
-    NetOverrides, lossless_publisher, now_ns, open, publisher, zenoh, zenoh_err as z,
-};
+use rig_runtime::{NetOverrides, now_ns, open, publisher, zenoh, zenoh_err as z};
 use thiserror::Error;
 
 use crate::board::{
@@ -412,7 +410,7 @@ pub async fn run(
     let board_pub = match opts.joints.len() {
         1 => None,
         _ => Some(
-            lossless_publisher(
+            publisher(
                 &session,
                 keys.board_sample(&rig_config::board_name(cfg, &opts.joints))?,
             )
@@ -429,7 +427,7 @@ pub async fn run(
             guard: JointGuard::new(j as u16, limits, f64::NAN),
             limits,
             sample_pub: match board_pub {
-                None => Some(lossless_publisher(&session, keys.joint_sample(name)?).await?),
+                None => Some(publisher(&session, keys.joint_sample(name)?).await?),
                 Some(_) => None,
             },
             truth_pub: publisher(&session, keys.sim_truth(name)?).await?,

@@ -277,6 +277,13 @@ fn plain_config(
     )?;
     set(&mut c, "scouting/multicast/enabled", json!(false))?;
     set(&mut c, "timestamping/enabled", json!(true))?;
+    // Each link queues up to 16 batches of 64 KiB for data (Zenoh's most; default 2, taken
+    // only as needed), so a board message that finds the tx thread a few ms behind waits in
+    // the queue instead of being dropped after 1 ms: at 256 joints × 1 kHz (17 KB per tick)
+    // two batches are 7 ticks, and two of seven 60 s runs lost whole board messages. A put
+    // still never blocks the agent's loop (its watchdog runs there) for more than Zenoh's
+    // 1 ms `wait_before_drop`: a link that is down drops, it does not stall the board.
+    set(&mut c, "transport/link/tx/queue/size/data", json!(16))?;
     Ok((c, listen, mode_of))
 }
 
@@ -366,24 +373,6 @@ pub async fn publisher(
     session.declare_publisher(declared).await.map_err(zenoh_err)
 }
 
-/// A [`publisher`] that never drops: when a link's transmission queue is full (two 64 KiB
-/// batches by default) a put waits for room instead of being dropped after 1 ms, Zenoh's
-/// default. For the joints' samples, which the estimator and a recorder must all see: at 256
-/// joints × 1 kHz a receive thread that fell a few ms behind lost whole board messages
-/// (2 304 samples of 15.4 M in one 60 s run). A link that stays full for 5 s closes (Zenoh's
-/// `wait_before_close`); a sample held up past the estimator's clock bound is refused there.
-pub async fn lossless_publisher(
-    session: &zenoh::Session,
-    key: String,
-) -> Result<zenoh::pubsub::Publisher<'static>, RuntimeError> {
-    let declared = session.declare_keyexpr(key).await.map_err(zenoh_err)?;
-    session
-        .declare_publisher(declared)
-        .congestion_control(zenoh::qos::CongestionControl::Block)
-        .await
-        .map_err(zenoh_err)
-}
-
 /// Opens the session of the process `who` ([`session_config`]).
 pub async fn open(
     cfg: &RigConfig,
@@ -448,36 +437,6 @@ pub async fn wait_alive(
 #[cfg(test)]
 mod tests {
     use super::*;
-
-    #[test]
-    fn sample_publishers_wait_for_room_and_the_others_drop() {
-        let rt = tokio::runtime::Builder::new_multi_thread()
-            .worker_threads(1)
-            .enable_all()
-            .build()
-            .unwrap();
-        rt.block_on(async {
-            let mut c = zenoh::Config::default();
-            c.insert_json5("listen/endpoints", r#"["tcp/127.0.0.1:0"]"#)
-                .unwrap();
-            c.insert_json5("scouting/multicast/enabled", "false")
-                .unwrap();
-            let z = zenoh::open(c).await.unwrap();
-            let lossless = lossless_publisher(&z, "rig/t/joint/j1/sample".into())
-                .await
-                .unwrap();
-            let other = publisher(&z, "rig/t/estimate/ee".into()).await.unwrap();
-            assert_eq!(
-                lossless.congestion_control(),
-                zenoh::qos::CongestionControl::Block
-            );
-            assert_eq!(
-                other.congestion_control(),
-                zenoh::qos::CongestionControl::Drop
-            );
-            z.close().await.unwrap();
-        });
-    }
 
     #[test]
     fn a_flood_is_said_at_one_ten_a_hundred_and_so_on() {
