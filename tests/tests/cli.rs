@@ -63,6 +63,26 @@ fn every_long_running_command_refuses_a_duration_that_is_not_a_positive_number_o
 }
 
 #[test]
+fn a_joint_agent_given_a_joint_twice_says_so_before_it_joins_the_rig() {
+    let cfg = config();
+    let start = Instant::now();
+    let (code, err) = run(
+        "rig-joint",
+        &[
+            "--config",
+            cfg.to_str().unwrap(),
+            "--joint",
+            "j1,j2,j1",
+            "--duration",
+            "5",
+        ],
+    );
+    assert_ne!(code, Some(0), "{err}");
+    assert!(err.contains("joint j1 is named twice in --joint"), "{err}");
+    assert!(start.elapsed() < Duration::from_secs(4), "it ran: {err}");
+}
+
+#[test]
 fn a_rerun_viewer_url_given_to_connect_is_refused_with_the_flag_it_belongs_to() {
     for cmd in [vec!["up"], vec!["viz"]] {
         let mut args = cmd.clone();

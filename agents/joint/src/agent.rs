@@ -34,6 +34,9 @@ pub enum AgentError {
     /// No certificate fits what the agent serves.
     #[error("{0}")]
     Identity(String),
+    /// A joint named twice in what the agent serves.
+    #[error("joint {0} is named twice in --joint: a board serves each of its joints once")]
+    JointTwice(String),
 }
 
 impl From<rig_protocol::KeyError> for AgentError {
@@ -309,10 +312,19 @@ async fn publish_tick(
             None => samples.push(sample),
         }
     }
-    if let (Some(p), false) = (board_pub, samples.is_empty())
-        && let Ok(bytes) = encode(&BoardSample { samples })
-    {
-        p.put(bytes).await.map_err(z)?;
+    if let (Some(p), false) = (board_pub, samples.is_empty()) {
+        // Each sample is valid and each joint served once (checked at the start): a board
+        // message the protocol refuses would be a bug, said rather than dropped in silence.
+        match encode(&BoardSample { samples }) {
+            Ok(bytes) => p.put(bytes).await.map_err(z)?,
+            Err(e) => {
+                if let Some(first) = served.first_mut()
+                    && let Some(n) = first.unsent.count()
+                {
+                    eprintln!("rig-joint: board message not sent: {e} ({n} not sent so far)");
+                }
+            }
+        }
     }
     for (joint, r) in served.iter().zip(readings) {
         joint.truth(t_acq, r).await?;
@@ -389,6 +401,9 @@ pub async fn run(
         .iter()
         .map(|n| joint_index(cfg, n))
         .collect::<Result<Vec<_>, _>>()?;
+    if let Some((k, _)) = js.iter().enumerate().find(|(k, j)| js[..*k].contains(j)) {
+        return Err(AgentError::JointTwice(opts.joints[k].clone()));
+    }
     let keys = Keys::new(&cfg.name)?;
     // Under [security] a board presents its joint's certificate; an agent serving several
     // joints presents that of the plan's machine that runs them (or `--identity`), or its
