@@ -49,6 +49,10 @@ pub(crate) fn bias(p: &Problem, h: &Heldout, e: &[f64]) -> Vec<(String, f64)> {
         .collect()
 }
 
+/// A residual loop more negative than this runs backwards beyond what noise draws: the report
+/// says it is a lag of the torque path, and selection takes that as evidence for one.
+pub(crate) const LOOP_BACKWARDS: f64 = 0.1;
+
 /// The orientation of the residual's loop against the angle: ∮e·dx / (rms(e)·∮|dx|) over the
 /// contiguous stretches of `rows` (`e` is indexed like `rows`). Positive: loading above
 /// unloading (dissipative, what friction and hysteresis leave); negative: it gives energy
@@ -151,7 +155,7 @@ pub(crate) fn diagnose(
             ));
         }
     }
-    if opts.model.is_joint() && loop_before < -0.1 {
+    if opts.model.is_joint() && loop_before < -LOOP_BACKWARDS {
         structure.push(format!(
             "the declared model's residual loops the other way round ({loop_before:+.2}: loading below unloading, it gives energy back) — no passive part does that; it is the torque lagging the deflection{}, or a sign error",
             if lag_found { " (found: sensor_delay)" } else { "" }

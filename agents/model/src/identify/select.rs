@@ -219,6 +219,12 @@ pub(crate) fn forward(
         let val0 = now.error_on(&p.tau, &rows.validate);
         let all = fit(&sig, &chosen, &p.tau, &rows.fit).ok_or(IdentifyError::Solve)?;
         let (rss0, _) = rss_and_neff(p, &all, &rows.fit);
+        // The current model's residual gives energy back (its loop against the angle runs
+        // loading below unloading): no passive part does that, a lag of the torque path does.
+        // Then a torque lag need only pay by the criterion, not also by `min_gain`.
+        let backwards = p.model.is_joint()
+            && super::report::loop_area(p, &sig.x, &rows.fit, &all.residual_on(&p.tau, &rows.fit))
+                < -super::report::LOOP_BACKWARDS;
         let mut paying: Vec<Paying> = Vec::new();
         let mut per_effect = Vec::new();
         for (e, grid) in cands {
@@ -444,7 +450,9 @@ pub(crate) fn forward(
             let (cand, val, sc) = judged;
             let gain = 1.0 - val / val0;
             per_effect.push((*e, gain, sc));
-            if gain >= opts.min_gain && sc > 0.0 {
+            let lag_shown =
+                backwards && cand.effect == Effect::SensorDelay && cand.shape > 0.0 && gain > 0.0;
+            if (gain >= opts.min_gain || lag_shown) && sc > 0.0 {
                 let curve = (!std::ptr::eq(pe, &*p))
                     .then(|| pe.restoring.clone())
                     .flatten();
