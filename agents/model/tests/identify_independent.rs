@@ -211,6 +211,16 @@ fn param_of(id: &Identified, name: &str) -> f64 {
         .unwrap_or_else(|| panic!("no {name} in {p:?}"))
 }
 
+/// The held-out error of a case's identification within 10 % of its clean twin's.
+fn within_a_tenth_of_the_clean_twin(c: &Case, id: &Identified) {
+    let floor = floor_of(c);
+    assert!(
+        id.after.rmse < 1.1 * floor,
+        "held-out {} against the clean twin's {floor}",
+        id.after.rmse
+    );
+}
+
 #[test]
 fn on_the_lever_an_encoder_slip_is_sized_in_full_though_the_loop_can_hold_part_of_it() {
     // 100 Hz, ramp-and-hold, a 4.8 mrad slip at 20.2 s: alternating slip and loop settled at
@@ -224,12 +234,7 @@ fn on_the_lever_an_encoder_slip_is_sized_in_full_though_the_loop_can_hold_part_o
         (jump.abs() / truth.abs() - 1.0).abs() < 0.05,
         "slip {jump} against {truth}"
     );
-    let floor = floor_of(&c);
-    assert!(
-        id.after.rmse < 1.1 * floor,
-        "held-out {} against the clean twin's {floor}",
-        id.after.rmse
-    );
+    within_a_tenth_of_the_clean_twin(&c, &id);
 }
 
 #[test]
@@ -241,12 +246,7 @@ fn on_the_lever_viscous_friction_is_sized_in_full_and_not_taken_for_a_lag_of_the
     let id = identify_case(&c);
     let b = param_of(&id, "damping_nms_per_rad");
     assert!((b / truth - 1.0).abs() < 0.1, "b {b} against {truth}");
-    let floor = floor_of(&c);
-    assert!(
-        id.after.rmse < 1.1 * floor,
-        "held-out {} against the clean twin's {floor}",
-        id.after.rmse
-    );
+    within_a_tenth_of_the_clean_twin(&c, &id);
 }
 
 #[test]

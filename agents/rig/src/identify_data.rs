@@ -1,7 +1,7 @@
 //! Measured data in, SI out: CSV files with a column map and units, or MCAP recordings of
 //! the rig. Missing values and out-of-order time are dropped and counted, never guessed.
 
-use std::collections::BTreeMap;
+use std::collections::{BTreeMap, BTreeSet};
 use std::path::Path;
 
 use rig_model::identify::Run;
@@ -275,18 +275,25 @@ fn read_mcap(path: &Path, joint: Option<&str>) -> Result<(Run, Sampling), CliErr
     let (msgs, _) = crate::record::read_all(path)?;
     // A board of several joints sends its ticks on its board key (kind 9), each sample naming
     // its joint by index: the names come from the joints' own keys (statuses, estimates).
+    // One message per joint key is enough: a joint already named is not decoded again.
     let mut name_of: BTreeMap<u16, String> = BTreeMap::new();
+    let mut named: BTreeSet<String> = BTreeSet::new();
     for m in &msgs {
         let index = match Topic::parse(&m.topic) {
-            Ok(Topic::JointStatus { joint, .. }) => decode::<JointStatus>(&m.data)
-                .ok()
-                .map(|s| (s.joint, joint)),
-            Ok(Topic::JointEstimate { joint, .. }) => decode::<JointEstimate>(&m.data)
-                .ok()
-                .map(|e| (e.joint, joint)),
+            Ok(Topic::JointStatus { joint, .. }) if !named.contains(&joint) => {
+                decode::<JointStatus>(&m.data)
+                    .ok()
+                    .map(|s| (s.joint, joint))
+            }
+            Ok(Topic::JointEstimate { joint, .. }) if !named.contains(&joint) => {
+                decode::<JointEstimate>(&m.data)
+                    .ok()
+                    .map(|e| (e.joint, joint))
+            }
             _ => None,
         };
         if let Some((i, name)) = index {
+            named.insert(name.clone());
             name_of.entry(i).or_insert(name);
         }
     }
