@@ -70,6 +70,11 @@ pub struct CoreStats {
     /// Samples refused: the payload's joint is not the one of the key it came on (or, on a
     /// board's key, one the board does not run).
     pub refused_key: u64,
+    /// Samples missing from the accepted samples' sequence numbers (gaps; a restarted agent
+    /// starts over). Counted after the checks above, so a refused sample cannot make a gap
+    /// (a forged far sequence number would have); one refused between two accepted ones is
+    /// in its refusal count and, the models never having seen it, in this gap too.
+    pub lost: u64,
 }
 
 enum PerJoint {
@@ -445,6 +450,11 @@ impl EstimatorCore {
         if self.last_accepted[j].is_some_and(|(seq, t)| s.seq <= seq && s.t_acq_ns <= t) {
             self.stats.refused_replay += 1;
             return out;
+        }
+        if let Some((seq, _)) = self.last_accepted[j]
+            && s.seq > seq
+        {
+            self.stats.lost += s.seq - seq - 1;
         }
         self.last_accepted[j] = Some((s.seq, s.t_acq_ns));
         if let Some(e) = self.clock.on_sample(j, s.t_acq_ns, now_ns) {
@@ -1075,6 +1085,36 @@ mod tests {
         let said = statuses(&core.on_sample(off, 14 * ms));
         assert_eq!(core.stats.refused_range, 1);
         assert!(said[0].text.contains("outside its travel"), "{said:?}");
+    }
+
+    #[test]
+    fn gaps_in_the_sequence_count_as_lost_only_between_accepted_samples() {
+        let mut core = EstimatorCore::new(&cfg(), CoreTiming::for_rate(1000.0)).unwrap();
+        let ms = 1_000_000u64;
+        core.on_sample(sample(0, 10, 0.0), 10 * ms);
+        // Seq 11 and 12 never came: two lost.
+        core.on_sample(sample(0, 13, 0.0), 13 * ms);
+        assert_eq!(core.stats.lost, 2);
+        // A forged sample on another joint's key with a far sequence number: refused, and the
+        // gap it would make is not counted, nor the one back to the real sequence.
+        let mut forged = sample(0, 14, 0.0);
+        forged.seq = 1_000;
+        core.on_sample_from("j2", forged, 14 * ms);
+        assert_eq!(core.stats.refused_key, 1);
+        core.on_sample(sample(0, 14, 0.0), 14 * ms);
+        assert_eq!(core.stats.lost, 2);
+        // A pivot off the travel: 15 refused, 16 accepted. The models never saw 15, so it is
+        // a gap of the accepted sequence as well as a refusal.
+        let mut off = sample(0, 15, 0.0);
+        off.pivot_m = Some(0.05);
+        core.on_sample(off, 15 * ms);
+        core.on_sample(sample(0, 16, 0.0), 16 * ms);
+        assert_eq!((core.stats.refused_range, core.stats.lost), (1, 3));
+        // A restarted agent counts from 1 again: no gap.
+        let mut restarted = sample(0, 17, 0.0);
+        restarted.seq = 1;
+        core.on_sample(restarted, 17 * ms);
+        assert_eq!(core.stats.lost, 3);
     }
 
     #[test]

@@ -59,8 +59,6 @@ pub struct EstimatorReport {
     /// The transport part of that latency [µs]: from the same Zenoh timestamp to the sample's
     /// arrival in the host, before any estimation.
     pub transport_us: LatencySummary,
-    /// Samples missing from the joints' sequence numbers (gaps; a restarted agent starts over).
-    pub lost: u64,
     /// Time from the first to the last sample received [ns].
     pub window_ns: u64,
     /// Estimates or statuses Zenoh refused to publish.
@@ -120,7 +118,6 @@ struct State {
     latencies: Histogram,
     transport: Histogram,
     all_out: Histogram,
-    last_seq: Vec<Option<u64>>,
     first_arrival: Option<u64>,
 }
 
@@ -170,14 +167,6 @@ fn on_sample(state: &Mutex<State>, pubs: &Publishers, s: &zenoh::sample::Sample,
         st.report.window_ns = now.saturating_sub(first);
         for sample in &samples {
             st.ages.record(now.saturating_sub(sample.t_acq_ns) / 1000);
-            let gap = match st.last_seq.get(sample.joint as usize) {
-                Some(Some(l)) if sample.seq > *l => sample.seq - l - 1,
-                _ => 0,
-            };
-            st.report.lost += gap;
-            if let Some(last) = st.last_seq.get_mut(sample.joint as usize) {
-                *last = Some(sample.seq);
-            }
         }
         match (board, samples.as_slice()) {
             (false, [sample]) => st.core.on_sample_from(key_name, *sample, now),
@@ -215,7 +204,6 @@ pub async fn run(
         ee: publisher(&session, keys.ee_estimate()).await?,
         status: publisher(&session, keys.estimator_status()).await?,
     });
-    let n = core.names().len();
     let state = Arc::new(Mutex::new(State {
         core,
         report: EstimatorReport::default(),
@@ -223,7 +211,6 @@ pub async fn run(
         latencies: Histogram::new(),
         transport: Histogram::new(),
         all_out: Histogram::new(),
-        last_seq: vec![None; n],
         first_arrival: None,
     }));
     // One subscriber per joint on its concrete key, not one on `joint/*/sample`: Zenoh caches
