@@ -112,9 +112,10 @@ pub struct Options {
     pub max_delay: f64,
     /// Half-window of the local fits giving rates [s]; `None`: the narrowest of 10, 20, 40 and
     /// 80 ms whose fit of the declared model (with the shape-free candidates) is within 5 % of
-    /// the best on the validation blocks (a narrow window passes the encoder's quantisation into q̈, a wide
-    /// one flattens fast motion; the joint models' torque does not depend on rates, so for
-    /// them it stays at 20 ms).
+    /// the best on the validation blocks, and where 80 ms is still the best, of 80, 160 and
+    /// 320 ms with a lag searched at each (a narrow window passes the encoder's quantisation
+    /// and noise into q̈, a wide one flattens fast motion; the joint models' torque does not
+    /// depend on rates, so for them it stays at 20 ms).
     pub rate_window: Option<f64>,
     /// Take each run's torque and deflection zeros from the rest it starts with (joint-torque
     /// models; the link equation's torque at rest is gravity's, so it is never tared).
@@ -510,7 +511,9 @@ pub fn identify(
             .map(|(effect, best_gain, score)| Refused {
                 effect,
                 best_gain,
-                why: if best_gain < opts.min_gain {
+                why: if score == select::REPLACES_INERTIA {
+                    "a lag that would take the inertia's place: the rates' q̈ too noisy to tell a lag from the inertia"
+                } else if best_gain < opts.min_gain {
                     "its best validation gain is below the threshold"
                 } else if score <= 0.0 {
                     "its gain is within what the residual's effective samples explain (information criterion)"

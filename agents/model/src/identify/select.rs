@@ -193,6 +193,25 @@ pub(crate) fn rss_and_neff(p: &Problem, f: &Fitted, rows: &[usize]) -> (f64, f64
     (rss, effective_samples(&segs))
 }
 
+/// The score of a lag that would take the inertia's place ([`takes_the_inertias_place`]):
+/// never added, and said so.
+pub(crate) const REPLACES_INERTIA: f64 = -1e300;
+
+/// On the link equation, a lag of the angle reads q̇(t + δ) ≈ q̇ + δ·q̈: with δ·N near the
+/// inertia I, a smooth q̇ shifted in time can stand in for a q̈ that the rates left noisy (an
+/// encoder's noise of a few counts: the inertia fitted low, by errors in the regressor, and a
+/// lag of −90 ms named on clean data, the inertia then ≈ 0). A real lag leaves the inertia
+/// where it is once it is modelled (a torque lag δ made it look I − δ·N lighter; modelled, it
+/// comes back), so a lag whose fit leaves less than a quarter of the current model's inertia,
+/// or a model that sees no inertia at all, is no evidence of a lag.
+fn takes_the_inertias_place(model: Declared, c: &Shaped, now: &Fitted, with: &Fitted) -> bool {
+    if model != Declared::Link || c.effect != Effect::SensorDelay {
+        return false;
+    }
+    let (i_now, i_with) = (now.part(0)[0], with.part(0)[0]);
+    !(i_now > 0.0 && i_with >= 0.25 * i_now)
+}
+
 /// The criterion's score of going from RSS₀ to a fit with `k` parameters more, searched over
 /// `m` shapes: positive when it pays (module docs).
 pub(crate) fn score(rss0: f64, rss1: f64, n_eff: f64, k: usize, m: usize) -> f64 {
@@ -421,6 +440,9 @@ pub(crate) fn forward(
             let judge = |c: Shaped, val: f64| -> Result<(Shaped, f64, f64), IdentifyError> {
                 let (trial, s1) = signals_with(&c);
                 let f1 = fit(&s1, &trial, &pe.tau, &rows.fit).ok_or(IdentifyError::Solve)?;
+                if takes_the_inertias_place(pe.model, &c, &all, &f1) {
+                    return Ok((c, val, REPLACES_INERTIA));
+                }
                 let (rss1, n_eff) = rss_and_neff(pe, &f1, &rows.fit);
                 let k = c.parameters(f1.part(trial.len()), pe.model.is_joint());
                 let sc = score(rss0, rss1, n_eff, k, tried);
@@ -1012,7 +1034,8 @@ fn loaded_between_stops(
 }
 
 /// The half-window of the rates (see [`Options::rate_window`]): given, 20 ms for the joint
-/// models, or for the link equation the narrowest of 10, 20, 40, 80 ms whose fit of the
+/// models, or for the link equation the narrowest of 10, 20, 40, 80 ms (and, where 80 ms is
+/// still the best of those, of 80, 160, 320 ms each with a lag free) whose fit of the
 /// declared model, with every shape-free candidate present (an offset, friction, gravity, so
 /// that an effect the model lacks does not decide how rates are taken), is within 5 % of the
 /// best on the validation blocks. The link's rates are local quartics (see
@@ -1048,6 +1071,14 @@ pub(crate) fn rate_window(
     rate_window_knowing(raw, rows, opts, &known)
 }
 
+/// The half-windows of the link equation's rates tried first [s].
+const NARROW_WINDOWS: [f64; 4] = [0.01, 0.02, 0.04, 0.08];
+
+/// Then, where the widest of those was still the best, these [s]: up to a third of a second,
+/// which a slow ramp's q̈ (its changes over ~1 s) outlasts and which an encoder's noise of a
+/// few counts at 100 Hz needs before q̈ is more signal than noise.
+const WIDE_WINDOWS: [f64; 3] = [0.08, 0.16, 0.32];
+
 /// [`rate_window`]'s choice with the effects `known` among the nuisance columns.
 fn rate_window_knowing(
     raw: &mut Problem,
@@ -1059,35 +1090,71 @@ fn rate_window_knowing(
         Some(w) => Ok(w),
         None if opts.model == Declared::Link => {
             let dt = super::rows::sampling_step(&raw.runs);
-            let mut nuisance: Vec<Shaped> = candidates(raw, opts, dt, 1.0)
-                .0
+            let cands = candidates(raw, opts, dt, 1.0).0;
+            let mut nuisance: Vec<Shaped> = cands
                 .iter()
                 .flat_map(|(_, g)| g.iter().filter(|c| c.shape.is_nan()).copied())
                 .filter(|c| known.iter().all(|k| k.effect != c.effect))
                 .collect();
             nuisance.extend_from_slice(known);
-            let mut scored = Vec::new();
-            for w in [0.01, 0.02, 0.04, 0.08] {
+            let lags: Vec<Shaped> = cands
+                .iter()
+                .filter(|(e, _)| *e == Effect::SensorDelay && known.iter().all(|k| k.effect != *e))
+                .flat_map(|(_, g)| g.iter().copied())
+                .collect();
+            // Each window's validation error with the nuisance columns, and (`lag`) the least
+            // of that and of the same with a lag of either sensor searched.
+            let mut error_at = |w: f64, lag: bool| -> Result<f64, IdentifyError> {
                 raw.set_rate_window(w);
-                let e = fit(
-                    &raw.signals(Transform::default()),
+                let sig = raw.signals(Transform::default());
+                let without = fit(&sig, &nuisance, &raw.tau, &rows.train)
+                    .ok_or(IdentifyError::Solve)?
+                    .error_on(&raw.tau, &rows.validate);
+                if !lag {
+                    return Ok(without);
+                }
+                let with_lag = search(
+                    raw,
+                    &sig,
                     &nuisance,
-                    &raw.tau,
+                    &lags,
                     &rows.train,
+                    &rows.validate,
+                    &mut || {},
                 )
-                .ok_or(IdentifyError::Solve)?
-                .error_on(&raw.tau, &rows.validate);
-                scored.push((w, e));
-            }
-            let best = scored.iter().map(|s| s.1).fold(f64::INFINITY, f64::min);
+                .map_or(f64::INFINITY, |(_, e, _)| e);
+                Ok(without.min(with_lag))
+            };
             // Within 5 % of the best is a tie; the narrowest of those smears friction's
             // reversals least. (Two standard errors over the residual's effective samples
             // instead tied windows 10–30 % apart where a step or a lag the model lacks makes
             // the residual slow, and a lag came back as a companion on 8 of 40 cases.)
-            Ok(scored
-                .iter()
-                .find(|s| s.1 <= 1.05 * best)
-                .map_or(0.02, |s| s.0))
+            let narrowest_tied = |scored: &[(f64, f64)]| -> Option<f64> {
+                let best = scored.iter().map(|s| s.1).fold(f64::INFINITY, f64::min);
+                scored.iter().find(|s| s.1 <= 1.05 * best).map(|s| s.0)
+            };
+            let mut scored = Vec::new();
+            for w in NARROW_WINDOWS {
+                scored.push((w, error_at(w, false)?));
+            }
+            let w = narrowest_tied(&scored).unwrap_or(0.02);
+            if w < NARROW_WINDOWS[NARROW_WINDOWS.len() - 1] {
+                return Ok(w);
+            }
+            // The widest of them and still no tie with a narrower one: q̈ may be more noise
+            // than signal (an encoder's noise of a few counts), and wider windows are tried,
+            // each with a lag of either sensor searched too. A lag free at every window keeps
+            // the window's choice on noise and flattening alone: a wide window flattens q̈ by a
+            // law of the frequency that can stand in for a lag (an angle lag on a multi-sine
+            // at 1 kHz validated 7× better at ±320 ms than at ±80 ms without one). The
+            // narrower windows are not tried with a lag: there a lag of q̇ stands in for a q̈
+            // that the window left noisy (δ·N·q̈ for the inertia; a clean ramp-and-hold at
+            // 200 Hz tied ±10 ms and a −99 ms lag with ±80 ms).
+            let mut wide = Vec::new();
+            for w in WIDE_WINDOWS {
+                wide.push((w, error_at(w, true)?));
+            }
+            Ok(narrowest_tied(&wide).unwrap_or(w))
         }
         None => Ok(0.02),
     }

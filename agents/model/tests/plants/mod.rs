@@ -184,6 +184,9 @@ pub struct Case {
     pub rate_hz: f64,
     /// Torque noise as a fraction of the peak torque.
     pub noise: f64,
+    /// The angle encoder's own noise, rms in counts, before it counts (0: quantisation
+    /// only; X_NOISE_COUNTS sets it for stress runs).
+    pub encoder_noise: f64,
     pub seed: u64,
 }
 
@@ -202,6 +205,17 @@ pub struct Data {
 fn duration() -> f64 {
     static DURATION: std::sync::OnceLock<f64> = std::sync::OnceLock::new();
     *DURATION.get_or_init(|| env_f64("DURATION_S", 30.0))
+}
+
+/// RAMPS=linear: ramp-and-hold motions at constant speed (stress runs).
+fn linear_ramps() -> bool {
+    std::env::var("RAMPS").is_ok_and(|v| v == "linear")
+}
+
+/// LAG=lowpass: a lagging sensor path is a first-order low-pass of time constant δ (a
+/// sensor's filter) instead of a pure delay δ (stress runs).
+fn lowpass_lags() -> bool {
+    std::env::var("LAG").is_ok_and(|v| v == "lowpass")
 }
 
 /// The imposed angle and its first two derivatives at time t, from a motion's parameters.
@@ -282,16 +296,24 @@ impl Trajectory {
                 break;
             }
             let u = ((t - t0) / dur).min(1.0);
-            let s = u * u * u * (10.0 - 15.0 * u + 6.0 * u * u);
-            let ds = if u < 1.0 {
-                30.0 * u * u * (1.0 - u) * (1.0 - u) / dur
+            // RAMPS=linear (stress runs): constant-speed ramps with sharp corners, as a
+            // spring-test machine drives them.
+            let (s, ds, dds) = if linear_ramps() {
+                (u, if u < 1.0 { 1.0 / dur } else { 0.0 }, 0.0)
             } else {
-                0.0
-            };
-            let dds = if u < 1.0 {
-                60.0 * u * (1.0 - u) * (1.0 - 2.0 * u) / (dur * dur)
-            } else {
-                0.0
+                (
+                    u * u * u * (10.0 - 15.0 * u + 6.0 * u * u),
+                    if u < 1.0 {
+                        30.0 * u * u * (1.0 - u) * (1.0 - u) / dur
+                    } else {
+                        0.0
+                    },
+                    if u < 1.0 {
+                        60.0 * u * (1.0 - u) * (1.0 - 2.0 * u) / (dur * dur)
+                    } else {
+                        0.0
+                    },
+                )
             };
             out = (from + (to - from) * s, (to - from) * ds, (to - from) * dds);
         }
@@ -445,6 +467,22 @@ pub fn generate(c: &Case, variant: u64) -> Data {
         tau_fine.push(tau);
         x_fine.push(x);
     }
+    // A lag as a sensor's first-order filter (LAG=lowpass), run on the fine grid.
+    if lowpass_lags() {
+        let lowpass = |v: &mut Vec<f64>| {
+            let a = 1.0 - (-1.0 / (fine * size)).exp();
+            let mut y = v[0];
+            for s in v.iter_mut() {
+                y += a * (*s - y);
+                *s = y;
+            }
+        };
+        match inject {
+            Some(Inject::TorqueLag) => lowpass(&mut tau_fine),
+            Some(Inject::AngleLag) => lowpass(&mut x_fine),
+            _ => {}
+        }
+    }
     let at = |v: &[f64], t: f64| -> f64 {
         let u = (t * fine).clamp(0.0, (n_fine - 1) as f64);
         let i = (u.floor() as usize).min(n_fine - 2);
@@ -463,6 +501,7 @@ pub fn generate(c: &Case, variant: u64) -> Data {
         // A little jitter on the sampling instants, as a real bus has.
         let t = (i as f64 + 0.1 * rng.uniform()) / c.rate_hz;
         let (t_tau, t_x) = match inject {
+            _ if lowpass_lags() => (t, t),
             Some(Inject::TorqueLag) => (t - size, t),
             Some(Inject::AngleLag) => (t, t - size),
             _ => (t, t),
@@ -476,6 +515,15 @@ pub fn generate(c: &Case, variant: u64) -> Data {
             _ => {}
         }
         tau += env_f64("NOISE_SCALE", 1.0) * c.noise * peak * rng.gauss();
+        // The encoder's own noise, in counts, before it counts.
+        let x_noise = if c.encoder_noise > 0.0 {
+            c.encoder_noise
+        } else {
+            env_f64("X_NOISE_COUNTS", 0.0)
+        };
+        if x_noise > 0.0 {
+            x += x_noise * resolution * rng.gauss();
+        }
         x = (x / resolution).round() * resolution;
         out.t.push(t);
         out.x.push(x);
