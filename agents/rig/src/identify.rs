@@ -402,6 +402,33 @@ fn effect_params_json(e: &rig_model::identify::Found) -> Value {
     v
 }
 
+/// The deflection's measured noise and what the joint models do with it.
+fn noise_line(res: &Identified) -> String {
+    let noise = sig(res.angle_noise * 1e6);
+    if res.smoothing.is_empty() {
+        return format!(
+            "encoder noise: {noise} µrad rms as measured, within a third of the dead band \
+             ({} µrad): the deflection is used as measured",
+            sig(res.dead_band * 1e6)
+        );
+    }
+    let windows: Vec<String> = res
+        .smoothing
+        .iter()
+        .map(|(run, h)| match *h > 0.0 {
+            true => format!("{run} ±{:.1} ms", h * 1e3),
+            false => format!(
+                "{run} as measured (even five samples would smooth away motion or jumps, not only noise)"
+            ),
+        })
+        .collect();
+    format!(
+        "encoder noise: {noise} µrad rms as measured, averaged out by a local quadratic ({}); \
+         the joint model and its effects see that deflection, the \"before\" the raw one",
+        windows.join(", ")
+    )
+}
+
 /// How a file's rest compares with the first file's, and what the rest was read as.
 fn zeros_why(t: &Tare) -> String {
     let against = against_first(t);
@@ -522,6 +549,9 @@ fn report_json(
         "bias": res.bias.iter().map(|(r, b)| json!({"run": r, "mean_residual_nm": num(*b)})).collect::<Vec<_>>(),
         "sampling": sampling,
         "dead_band_rad": num(res.dead_band),
+        "angle_noise_rad": num(res.angle_noise),
+        "smoothing": res.smoothing.iter().map(|(run, h)| json!({"run": run, "half_window_s": num(*h)})).collect::<Vec<_>>(),
+        "rate_window_s": num(res.rate_window),
         "min_gain": num(a.min_gain),
         "notes": notes,
     });
@@ -591,6 +621,9 @@ fn print_summary(res: &Identified, notes: &[String]) {
     }
     if let Some(note) = &res.tare_note {
         println!("  tare: {note}");
+    }
+    if res.model.is_joint() {
+        println!("  {}", noise_line(res));
     }
     if !res.tare.is_empty() {
         println!("  tared: held-out RMSE {} N·m", sig(res.tared.rmse));
@@ -667,6 +700,13 @@ fn markdown(
         }
         s.push_str(&format!(
             "\nHeld-out RMSE after the tare: {} N·m.\n\n",
+            sig(res.tared.rmse)
+        ));
+    }
+    if res.model.is_joint() {
+        s.push_str(&format!(
+            "{}; held-out RMSE then {} N·m.\n\n",
+            noise_line(res),
             sig(res.tared.rmse)
         ));
     }

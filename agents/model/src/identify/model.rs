@@ -151,10 +151,7 @@ impl Problem {
                 signals::shifted(&r.t, &self.rates[k].0, tr.delay),
                 signals::shifted(&r.t, &self.rates[k].1, tr.delay),
             );
-            s.dir.extend(signals::rate_sign(
-                &v,
-                0.5 * self.resolution / self.rate_window,
-            ));
+            s.dir.extend(signals::rate_sign(&v, self.still()));
             let d =
                 r.d.as_ref()
                     .map_or(vec![0.0; n], |d| signals::shifted(&r.t, d, tr.delay));

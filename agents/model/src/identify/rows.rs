@@ -203,6 +203,14 @@ pub(crate) struct Problem {
     pub dead_band: f64,
     /// Quantisation step of the angle [rad] (0 when not quantised).
     pub resolution: f64,
+    /// The angle's white noise as measured, rms [rad] (the largest of the runs'; see
+    /// [`signals::white_noise_rms`]).
+    pub angle_noise: f64,
+    /// The median sampling step [s].
+    pub step: f64,
+    /// Each run's half-window of [`Problem::denoise`]'s smoothing [s] (0: left as measured;
+    /// empty: not denoised).
+    pub smoothing: Vec<f64>,
     pub rate_window: f64,
     /// Rate and acceleration of each run's angle (set with the window).
     pub rates: Vec<(Vec<f64>, Vec<f64>)>,
@@ -264,6 +272,12 @@ impl Problem {
         } else {
             1e-6
         });
+        // The encoder's own noise, measured before it is averaged away below.
+        let angle_noise = runs
+            .iter()
+            .map(|r| signals::white_noise_rms(&angle_of(r)))
+            .fold(0.0, f64::max);
+        let step = sampling_step(&runs);
         let mut p = Problem {
             runs,
             bounds,
@@ -274,6 +288,9 @@ impl Problem {
             envelope: opts.envelope,
             dead_band,
             resolution: if res.is_finite() { res } else { 0.0 },
+            angle_noise,
+            step,
+            smoothing: vec![],
             rate_window: 0.0,
             rates: vec![],
             restoring: None,
@@ -312,6 +329,55 @@ impl Problem {
                 signals::local_rates_of_degree(&r.t, x.map_or(&[][..], Vec::as_slice), w, degree)
             })
             .collect();
+    }
+
+    /// Averages the encoder's white noise out of the joint models' angle: each run's deflection
+    /// becomes a local quadratic's value (zero-phase, exact on a quadratic) over the widest
+    /// half-window up to the rate window that leaves the motion alone
+    /// ([`signals::smoothing_window`]), its rates computed again. The spring sees the true
+    /// deflection; read raw, an encoder's noise makes every small retreat a reversal of the
+    /// loop, and a lag "gains" by averaging the noise it interpolates. Only where the noise is
+    /// over a third of the dead band (a count, by default): quantisation alone stays within
+    /// half a count, which the dead band already holds. The link equation's angle is left as
+    /// measured.
+    pub fn denoise(&mut self) {
+        if !self.model.is_joint() || self.angle_noise <= self.dead_band / 3.0 {
+            return;
+        }
+        let w = self.rate_window;
+        self.smoothing = self
+            .runs
+            .iter_mut()
+            .map(|r| {
+                let Some(phi) = r.phi.as_mut() else {
+                    return 0.0;
+                };
+                let h = signals::smoothing_window(&r.t, phi, signals::white_noise_rms(phi), w);
+                if h > 0.0 {
+                    *phi = signals::local_fit_of_degree(&r.t, phi, h, 2).0;
+                }
+                h
+            })
+            .collect();
+        self.set_rate_window(w);
+    }
+
+    /// The rate below which the direction of motion is not known [rad/s]: half a count over
+    /// the rate window, or three times the rate's own noise where that is larger (a noisy
+    /// encoder: a sign taken inside the noise puts the whole friction on the wrong side).
+    pub fn still(&self) -> f64 {
+        (0.5 * self.resolution / self.rate_window).max(3.0 * self.rate_noise())
+    }
+
+    /// The rms noise of a rate from the angle's white noise [rad/s]: a local fit's slope over
+    /// samples at t_j has variance σ² / Σ (t_j − t)² (uniform steps, at least two samples
+    /// each side).
+    pub fn rate_noise(&self) -> f64 {
+        let h = self.rate_window;
+        let dt = self.step.max(1e-12);
+        let m = (h / dt).floor().max(2.0);
+        let sum_sq = dt * dt * m * (m + 1.0) * (2.0 * m + 1.0) / 3.0;
+        self.angle_noise / sum_sq.sqrt()
     }
 
     pub fn rows(&self, want: &[Role]) -> Vec<usize> {

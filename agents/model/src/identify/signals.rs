@@ -18,13 +18,27 @@ pub fn local_rates_of_degree(
     half_window: f64,
     degree: usize,
 ) -> (Vec<f64>, Vec<f64>) {
+    let (_, v, a) = local_fit_of_degree(t, x, half_window, degree);
+    (v, a)
+}
+
+/// As [`local_rates_of_degree`], with the local polynomial's value at each sample first: `x`
+/// with its white noise averaged over the window (zero-phase; exact on a polynomial of
+/// `degree`). Samples the fit cannot reach (fewer than `degree + 1`) keep `x`.
+pub fn local_fit_of_degree(
+    t: &[f64],
+    x: &[f64],
+    half_window: f64,
+    degree: usize,
+) -> (Vec<f64>, Vec<f64>, Vec<f64>) {
     let n = t.len();
     let degree = degree.clamp(2, 6);
     let m = degree + 1;
     let (mut v, mut a) = (vec![0.0; n], vec![0.0; n]);
     let side = m.div_ceil(2);
+    let mut value = x.to_vec();
     if n < m {
-        return (v, a);
+        return (value, v, a);
     }
     let (mut lo, mut hi) = (0usize, 0usize);
     let h = half_window.max(1e-12);
@@ -55,11 +69,12 @@ pub fn local_rates_of_degree(
             }
         }
         if let Some(c) = normal.clone().lu().solve(&rhs) {
+            value[i] = c[0];
             v[i] = c[1] / h;
             a[i] = 2.0 * c[2] / (h * h);
         }
     }
-    (v, a)
+    (value, v, a)
 }
 
 /// Direction of motion from a centred (zero-lag) rate: sgn(ẋ) where |ẋ| exceeds `still`,
@@ -154,6 +169,57 @@ pub fn uniform_segments(t: &[f64], x: &[f64], dt: f64, max_gap: f64) -> Vec<Vec<
     out
 }
 
+/// The rms of a signal's white noise (an encoder's own noise, or its quantisation where the
+/// signal moves counts per sample), from the mean absolute fourth difference: for white noise
+/// of rms σ, x[i−2] − 4x[i−1] + 6x[i] − 4x[i+1] + x[i+2] has rms σ·√70 and mean absolute
+/// value σ·√70·√(2/π). It is 35/3 of the residual of a five-sample local quadratic, so a
+/// motion's cubics cancel and only its fourth derivative (x⁗·dt⁴) remains: a fast motion
+/// sampled slowly is not read as noise. A slowly moving quantised signal (a step every few
+/// samples) reads as a fraction of a count. Assumes near-uniform sampling.
+pub fn white_noise_rms(x: &[f64]) -> f64 {
+    let d: Vec<f64> = x
+        .windows(5)
+        .map(|w| (w[0] - 4.0 * w[1] + 6.0 * w[2] - 4.0 * w[3] + w[4]).abs())
+        .collect();
+    if d.is_empty() {
+        return 0.0;
+    }
+    super::stats::mean(&d) / (70f64.sqrt() * (2.0 / std::f64::consts::PI).sqrt())
+}
+
+/// The widest half-window, up to `max_half_window`, over which a local quadratic averages white
+/// noise of rms `noise` out of `x` without taking the motion with it, or 0 where even two
+/// samples each side do. Half-windows of m samples each side (m = 2, 3, 4, 6, 9, …) are
+/// widened while the residual x − x̂ stays within 10 % of the noise's own share of it,
+/// σ·√(1 − c₀) (c₀ = 3(3m² + 3m − 1)/((2m − 1)(2m + 1)(2m + 3)), the weight of the centre
+/// sample): beyond that the fit flattens the motion (a smoothing bias of half the noise's rms
+/// lifts the residual by 10 %). A fast multi-sine at 1 kHz stops at a few milliseconds where a
+/// slow spring test takes the whole window.
+pub fn smoothing_window(t: &[f64], x: &[f64], noise: f64, max_half_window: f64) -> f64 {
+    let dt = median_step(t);
+    if !(dt > 0.0 && noise > 0.0) || x.len() < 5 {
+        return 0.0;
+    }
+    let mut best = 0.0;
+    let mut m = 2usize;
+    loop {
+        let h = (m as f64 + 0.5) * dt;
+        if h > max_half_window && m > 2 {
+            return best;
+        }
+        let (fit, _, _) = local_fit_of_degree(t, x, h, 2);
+        let r: Vec<f64> = x.iter().zip(&fit).map(|(a, b)| a - b).collect();
+        let mf = m as f64;
+        let c0 = 3.0 * (3.0 * mf * mf + 3.0 * mf - 1.0)
+            / ((2.0 * mf - 1.0) * (2.0 * mf + 1.0) * (2.0 * mf + 3.0));
+        if super::stats::rmse(&r) > 1.1 * noise * (1.0 - c0).sqrt() {
+            return best;
+        }
+        best = h.min(max_half_window.max(2.5 * dt));
+        m = (m * 3 / 2).max(m + 1);
+    }
+}
+
 /// The median of the positive steps of `t`.
 pub fn median_step(t: &[f64]) -> f64 {
     let d: Vec<f64> = t
@@ -205,11 +271,102 @@ mod tests {
             .map(|k| k as f64 * 0.01 + 0.003 * ((k * 7 % 5) as f64))
             .collect();
         let x: Vec<f64> = t.iter().map(|t| 3.0 + 2.0 * t - 5.0 * t * t).collect();
-        let (v, a) = local_rates(&t, &x, 0.03);
+        let (value, v, a) = local_fit_of_degree(&t, &x, 0.03, 2);
         for i in 0..t.len() {
+            assert!((value[i] - x[i]).abs() < 1e-9, "{i}: {}", value[i]);
             assert!((v[i] - (2.0 - 10.0 * t[i])).abs() < 1e-8, "{i}: {}", v[i]);
             assert!((a[i] + 10.0).abs() < 1e-6, "{i}: {}", a[i]);
         }
+        assert_eq!(local_rates(&t, &x, 0.03), (v, a));
+    }
+
+    /// Gaussian samples from a fixed seed (xorshift and Box–Muller), to need no crate.
+    fn gauss(n: usize, seed: u64) -> Vec<f64> {
+        let mut s = seed.max(1);
+        let mut uniform = || {
+            s ^= s << 13;
+            s ^= s >> 7;
+            s ^= s << 17;
+            ((s >> 11) as f64 + 0.5) / (1u64 << 53) as f64
+        };
+        (0..n)
+            .map(|_| {
+                let (u, w) = (uniform(), uniform());
+                (-2.0 * u.ln()).sqrt() * (std::f64::consts::TAU * w).cos()
+            })
+            .collect()
+    }
+
+    #[test]
+    fn the_smoothing_window_widens_on_a_slow_motion_and_stays_narrow_on_a_fast_one() {
+        // 0.2 mrad of noise at 1 kHz. On a 1 Hz swing of 0.1 rad a ±20 ms quadratic flattens
+        // the motion by well under a µrad: the whole window. On a 15 Hz swing of 0.1 rad the ±20 ms
+        // quadratic would lose a tenth of the amplitude (its residual ≫ the noise's share):
+        // the window stops where the flattening is still under half the noise's rms.
+        let n = 20_000;
+        let noise = gauss(n, 11);
+        let t: Vec<f64> = (0..n).map(|k| k as f64 * 1e-3).collect();
+        let swing = |f: f64| -> Vec<f64> {
+            (0..n)
+                .map(|k| 0.1 * (std::f64::consts::TAU * f * t[k]).sin() + 2e-4 * noise[k])
+                .collect()
+        };
+        let slow = swing(1.0);
+        let h = smoothing_window(&t, &slow, white_noise_rms(&slow), 0.02);
+        // m = 2, 3, 4, 6, 9, 13, 19 samples each side: 19.5 ms, the widest within 20 ms.
+        assert!((h - 0.0195).abs() < 1e-9, "{h}");
+        let fast = swing(15.0);
+        let h = smoothing_window(&t, &fast, white_noise_rms(&fast), 0.02);
+        assert!(h > 0.0 && h < 0.012, "{h}");
+        let (smooth, _, _) = local_fit_of_degree(&t, &fast, h, 2);
+        let bias: Vec<f64> = (100..n - 100)
+            .map(|k| smooth[k] - 0.1 * (std::f64::consts::TAU * 15.0 * t[k]).sin())
+            .collect();
+        // Still less than the noise it started with, flattening included.
+        assert!(crate::identify::stats::rmse(&bias) < 0.8 * 2e-4);
+        // No noise: nothing to average out.
+        assert_eq!(smoothing_window(&t, &slow, 0.0, 0.02), 0.0);
+    }
+
+    #[test]
+    fn white_noise_is_read_through_a_motion_and_a_slow_quantised_ramp_reads_as_almost_none() {
+        // σ = 0.2 mrad on a 1 Hz swing of 0.1 rad sampled at 1 kHz (curvature ẍ·dt² = 4 µrad).
+        let n = 20_000;
+        let noise = gauss(n, 7);
+        let x: Vec<f64> = (0..n)
+            .map(|k| 0.1 * (std::f64::consts::TAU * k as f64 * 1e-3).sin() + 2e-4 * noise[k])
+            .collect();
+        let est = white_noise_rms(&x);
+        assert!((est / 2e-4 - 1.0).abs() < 0.05, "{est}");
+        // The noise averaged out by a ±20 ms local quadratic (41 samples): its value at the
+        // centre has variance 2.25·σ²/41 (closed form of the centred fit, to a few %).
+        let t: Vec<f64> = (0..n).map(|k| k as f64 * 1e-3).collect();
+        let (smooth, _, _) = local_fit_of_degree(&t, &x, 0.02, 2);
+        let left: Vec<f64> = (100..n - 100)
+            .map(|k| smooth[k] - 0.1 * (std::f64::consts::TAU * t[k]).sin())
+            .collect();
+        let ratio = crate::identify::stats::std(&left) / 2e-4;
+        assert!((ratio - (2.25f64 / 41.0).sqrt()).abs() < 0.03, "{ratio}");
+        // A quantised ramp moving a tenth of a count per sample: a step every ten samples.
+        let res = 1e-4;
+        let ramp: Vec<f64> = (0..n)
+            .map(|k| (k as f64 * 0.1 + 0.5).floor() * res)
+            .collect();
+        assert!(
+            white_noise_rms(&ramp) < 0.15 * res,
+            "{}",
+            white_noise_rms(&ramp)
+        );
+        // A 5 Hz swing of 0.05 rad at 100 Hz, quantised at 0.1 mrad: its second difference
+        // (ẍ·dt², up to 5 mrad) would read as 16 counts of noise; its fourth difference
+        // (x⁗·dt⁴, up to 0.5 mrad) reads as half a count.
+        let fast: Vec<f64> = (0..2000)
+            .map(|k| {
+                let x = 0.05 * (std::f64::consts::TAU * 5.0 * k as f64 * 0.01).sin();
+                (x / res).round() * res
+            })
+            .collect();
+        assert!(white_noise_rms(&fast) < res, "{}", white_noise_rms(&fast));
     }
 
     #[test]
