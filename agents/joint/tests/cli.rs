@@ -80,11 +80,7 @@ fn runs_for_a_duration_and_reports() {
 
 #[test]
 fn listening_beyond_loopback_without_security_says_insecure_and_on_loopback_does_not() {
-    let port = std::net::TcpListener::bind("127.0.0.1:0")
-        .unwrap()
-        .local_addr()
-        .unwrap()
-        .port();
+    let port = rig_runtime::free_loopback_port().unwrap();
     // Listening only: nothing is sent anywhere (multicast scouting is off, nothing to connect).
     let everywhere = format!("tcp/0.0.0.0:{port}");
     let (code, err) = run(&[

@@ -63,9 +63,11 @@ pub struct Args {
 
 /// A Zenoh endpoint on a loopback port free now (TLS when `secure`).
 pub(crate) fn free_loopback_endpoint(secure: bool) -> Result<String, CliError> {
-    let l = std::net::TcpListener::bind("127.0.0.1:0")?;
     let proto = if secure { "tls" } else { "tcp" };
-    Ok(format!("{proto}/127.0.0.1:{}", l.local_addr()?.port()))
+    Ok(format!(
+        "{proto}/127.0.0.1:{}",
+        rig_runtime::free_loopback_port()?
+    ))
 }
 
 /// How long `rig up` waits for a role's liveliness token.

@@ -137,6 +137,44 @@ pub fn now_ns() -> u64 {
         .map_or(1, |d| d.as_nanos() as u64)
 }
 
+/// A TCP port on loopback that is free now and outside the kernel's ephemeral range. A port the
+/// kernel hands out for port 0 comes from that range, as do the local ports of every outgoing
+/// connection, so between this check and the later bind (Zenoh's) any connection the machine
+/// opens may take it — a CI run lost a bench that way ("Address already in use"). Below the
+/// range only another listener can, and the pick is random over some sixteen thousand ports.
+/// Falls back to a port of the kernel's choosing when none of 64 picks binds.
+pub fn free_loopback_port() -> std::io::Result<u16> {
+    use std::hash::{BuildHasher, Hasher};
+    use std::net::{Ipv4Addr, TcpListener};
+    let (lo, hi) = std::fs::read_to_string("/proc/sys/net/ipv4/ip_local_port_range")
+        .ok()
+        .and_then(|s| {
+            let mut v = s.split_whitespace().map(|p| p.parse::<u16>().ok());
+            Some((v.next()??, v.next()??))
+        })
+        .unwrap_or((32768, 60999));
+    let (from, to) = if lo >= 3024 {
+        (lo.saturating_sub(16384).max(1024), lo)
+    } else {
+        (hi.saturating_add(1), u16::MAX)
+    };
+    let mut x = std::collections::hash_map::RandomState::new()
+        .build_hasher()
+        .finish();
+    for _ in 0..64 {
+        x = x
+            .wrapping_mul(6364136223846793005)
+            .wrapping_add(1442695040888963407);
+        let port = from + ((x >> 33) % u64::from((to - from).max(1))) as u16;
+        if TcpListener::bind((Ipv4Addr::LOCALHOST, port)).is_ok() {
+            return Ok(port);
+        }
+    }
+    Ok(TcpListener::bind((Ipv4Addr::LOCALHOST, 0))?
+        .local_addr()?
+        .port())
+}
+
 /// The Zenoh config of one agent: the rig's mode and endpoints, CLI overrides winning.
 /// Without any listen endpoint a peer listens on an ephemeral loopback port. Insecure: for
 /// `rig bench`'s own sessions and tests; the rig's roles open with [`session_config`].
@@ -437,6 +475,25 @@ pub async fn wait_alive(
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn a_free_loopback_port_binds_and_lies_outside_the_kernels_ephemeral_range() {
+        let range = std::fs::read_to_string("/proc/sys/net/ipv4/ip_local_port_range")
+            .map(|s| {
+                s.split_whitespace()
+                    .map(|p| p.parse::<u16>().unwrap())
+                    .collect::<Vec<_>>()
+            })
+            .unwrap_or_else(|_| vec![32768, 60999]);
+        for _ in 0..20 {
+            let port = free_loopback_port().unwrap();
+            assert!(
+                port < range[0] || port > range[1],
+                "{port} within {range:?}"
+            );
+            std::net::TcpListener::bind(("127.0.0.1", port)).unwrap();
+        }
+    }
 
     #[test]
     fn a_flood_is_said_at_one_ten_a_hundred_and_so_on() {

@@ -17,13 +17,10 @@ pub fn bin(name: &str) -> PathBuf {
     p
 }
 
-/// A free TCP port on loopback.
+/// A free TCP port on loopback, outside the kernel's ephemeral range (see
+/// [`rig_runtime::free_loopback_port`]).
 pub fn free_port() -> u16 {
-    std::net::TcpListener::bind("127.0.0.1:0")
-        .unwrap()
-        .local_addr()
-        .unwrap()
-        .port()
+    rig_runtime::free_loopback_port().unwrap()
 }
 
 /// A child process killed when dropped.
