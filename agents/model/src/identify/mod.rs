@@ -426,14 +426,18 @@ pub fn identify(
         let base = states::settle(&mut p, &[], &rows)?;
         (p, base)
     } else if tare.is_empty() {
-        // Fitted afresh on the data the effects will see, as the other branches' new problems
-        // are: started from the raw fit's loop, a lever's loop had absorbed a torque offset
-        // (held-out 0.018 against 0.013 N·m with nothing named; 100 Hz, 2 counts of noise).
         let mut p = raw.clone();
-        p.restoring = None;
-        p.denoise();
-        let base = declared(&mut p)?;
-        (p, base)
+        if p.denoise() {
+            // Fitted afresh on the data the effects will see, as the other branches' new
+            // problems are: started from the raw fit's loop, a lever's loop had absorbed a
+            // torque offset (held-out 0.018 against 0.013 N·m with nothing named; 100 Hz, 2
+            // counts of noise).
+            p.restoring = None;
+            let base = declared(&mut p)?;
+            (p, base)
+        } else {
+            (p, before.clone())
+        }
     } else {
         let (fit_t, held_t) = (tared(fit_runs, 0), tared(held, fit_runs.len()));
         let mut p = Problem::new(&fit_t, &held_t, &holdout, opts);
@@ -447,7 +451,7 @@ pub fn identify(
     let e_tared = base.residual_on(&p.tau, &rows.held);
 
     // Candidates, then forward selection on the fit rows.
-    let dt = rows::sampling_step(&p.runs);
+    let dt = p.step;
     let (candidates, not_applicable) = select::candidates(&p, opts, dt, rows::longest_run(&p.runs));
     let per_round: usize = candidates.iter().map(|(_, g)| g.len() + 7).sum();
     let total = per_round * (opts.max_effects + 1).min(candidates.len() + 1);
@@ -579,7 +583,7 @@ pub fn identify(
         heldout,
         dt,
         dead_band: p.dead_band,
-        angle_noise: p.angle_noise,
+        angle_noise: p.angle_noise(),
         smoothing: p
             .runs
             .iter()

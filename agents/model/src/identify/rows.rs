@@ -203,9 +203,8 @@ pub(crate) struct Problem {
     pub dead_band: f64,
     /// Quantisation step of the angle [rad] (0 when not quantised).
     pub resolution: f64,
-    /// The angle's white noise as measured, rms [rad] (the largest of the runs'; see
-    /// [`signals::white_noise_rms`]).
-    pub angle_noise: f64,
+    /// Each run's angle white noise as measured, rms [rad] (see [`signals::white_noise_rms`]).
+    pub noise: Vec<f64>,
     /// The median sampling step [s].
     pub step: f64,
     /// Each run's half-window of [`Problem::denoise`]'s smoothing [s] (0: left as measured;
@@ -273,10 +272,10 @@ impl Problem {
             1e-6
         });
         // The encoder's own noise, measured before it is averaged away below.
-        let angle_noise = runs
+        let noise = runs
             .iter()
             .map(|r| signals::white_noise_rms(&angle_of(r)))
-            .fold(0.0, f64::max);
+            .collect();
         let step = sampling_step(&runs);
         let mut p = Problem {
             runs,
@@ -288,7 +287,7 @@ impl Problem {
             envelope: opts.envelope,
             dead_band,
             resolution: if res.is_finite() { res } else { 0.0 },
-            angle_noise,
+            noise,
             step,
             smoothing: vec![],
             rate_window: 0.0,
@@ -339,27 +338,36 @@ impl Problem {
     /// loop, and a lag "gains" by averaging the noise it interpolates. Only where the noise is
     /// over a third of the dead band (a count, by default): quantisation alone stays within
     /// half a count, which the dead band already holds. The link equation's angle is left as
-    /// measured.
-    pub fn denoise(&mut self) {
-        if !self.model.is_joint() || self.angle_noise <= self.dead_band / 3.0 {
-            return;
+    /// measured. Returns whether any run was smoothed.
+    pub fn denoise(&mut self) -> bool {
+        if !self.model.is_joint() || self.angle_noise() <= self.dead_band / 3.0 {
+            return false;
         }
         let w = self.rate_window;
         self.smoothing = self
             .runs
             .iter_mut()
-            .map(|r| {
+            .zip(&self.noise)
+            .map(|(r, &noise)| {
                 let Some(phi) = r.phi.as_mut() else {
                     return 0.0;
                 };
-                let h = signals::smoothing_window(&r.t, phi, signals::white_noise_rms(phi), w);
-                if h > 0.0 {
-                    *phi = signals::local_fit_of_degree(&r.t, phi, h, 2).0;
+                match signals::smoothing_window(&r.t, phi, noise, w) {
+                    Some((h, smoothed)) => {
+                        *phi = smoothed;
+                        h
+                    }
+                    None => 0.0,
                 }
-                h
             })
             .collect();
         self.set_rate_window(w);
+        self.smoothing.iter().any(|h| *h > 0.0)
+    }
+
+    /// The angle's white noise as measured, rms [rad]: the noisiest run's.
+    pub fn angle_noise(&self) -> f64 {
+        self.noise.iter().copied().fold(0.0, f64::max)
     }
 
     /// The rate below which the direction of motion is not known [rad/s]: half a count over
@@ -377,7 +385,7 @@ impl Problem {
         let dt = self.step.max(1e-12);
         let m = (h / dt).floor().max(2.0);
         let sum_sq = dt * dt * m * (m + 1.0) * (2.0 * m + 1.0) / 3.0;
-        self.angle_noise / sum_sq.sqrt()
+        self.angle_noise() / sum_sq.sqrt()
     }
 
     pub fn rows(&self, want: &[Role]) -> Vec<usize> {
@@ -521,7 +529,7 @@ pub(crate) fn longest_run(runs: &[Run]) -> f64 {
 }
 
 /// The median sampling step over the runs [s] (the smallest run's).
-pub(crate) fn sampling_step(runs: &[Run]) -> f64 {
+fn sampling_step(runs: &[Run]) -> f64 {
     runs.iter()
         .map(|r| signals::median_step(&r.t))
         .fold(f64::INFINITY, f64::min)

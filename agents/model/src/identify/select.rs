@@ -1058,8 +1058,7 @@ pub(crate) fn rate_window(
     // inertia fits as nothing and a lag stands in for it (N·δ·q̈). What a first selection finds,
     // lags aside, is known for a second choice.
     raw.set_rate_window(w);
-    let dt = super::rows::sampling_step(&raw.runs);
-    let (cands, _) = candidates(raw, opts, dt, super::rows::longest_run(&raw.runs));
+    let (cands, _) = candidates(raw, opts, raw.step, super::rows::longest_run(&raw.runs));
     let known: Vec<Shaped> = forward(&mut raw.clone(), &cands, rows, opts, &mut || {})?
         .chosen
         .into_iter()
@@ -1089,8 +1088,7 @@ fn rate_window_knowing(
     match opts.rate_window {
         Some(w) => Ok(w),
         None if opts.model == Declared::Link => {
-            let dt = super::rows::sampling_step(&raw.runs);
-            let cands = candidates(raw, opts, dt, 1.0).0;
+            let cands = candidates(raw, opts, raw.step, 1.0).0;
             let mut nuisance: Vec<Shaped> = cands
                 .iter()
                 .flat_map(|(_, g)| g.iter().filter(|c| c.shape.is_nan()).copied())

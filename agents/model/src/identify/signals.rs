@@ -188,19 +188,24 @@ pub fn white_noise_rms(x: &[f64]) -> f64 {
 }
 
 /// The widest half-window, up to `max_half_window`, over which a local quadratic averages white
-/// noise of rms `noise` out of `x` without taking the motion with it, or 0 where even two
-/// samples each side do. Half-windows of m samples each side (m = 2, 3, 4, 6, 9, …) are
-/// widened while the residual x − x̂ stays within 10 % of the noise's own share of it,
-/// σ·√(1 − c₀) (c₀ = 3(3m² + 3m − 1)/((2m − 1)(2m + 1)(2m + 3)), the weight of the centre
-/// sample): beyond that the fit flattens the motion (a smoothing bias of half the noise's rms
-/// lifts the residual by 10 %). A fast multi-sine at 1 kHz stops at a few milliseconds where a
-/// slow spring test takes the whole window.
-pub fn smoothing_window(t: &[f64], x: &[f64], noise: f64, max_half_window: f64) -> f64 {
+/// noise of rms `noise` out of `x` without taking the motion with it, with `x` so smoothed;
+/// `None` where even two samples each side take the motion. Half-windows of m samples each
+/// side (m = 2, 3, 4, 6, 9, …) are widened while the residual x − x̂ stays within 10 % of the
+/// noise's own share of it, σ·√(1 − c₀) (c₀ = 3(3m² + 3m − 1)/((2m − 1)(2m + 1)(2m + 3)), the
+/// weight of the centre sample): beyond that the fit flattens the motion (a smoothing bias of
+/// half the noise's rms lifts the residual by 10 %). A fast multi-sine at 1 kHz stops at a few
+/// milliseconds where a slow spring test takes the whole window.
+pub fn smoothing_window(
+    t: &[f64],
+    x: &[f64],
+    noise: f64,
+    max_half_window: f64,
+) -> Option<(f64, Vec<f64>)> {
     let dt = median_step(t);
     if !(dt > 0.0 && noise > 0.0) || x.len() < 5 {
-        return 0.0;
+        return None;
     }
-    let mut best = 0.0;
+    let mut best = None;
     let mut m = 2usize;
     loop {
         let h = (m as f64 + 0.5) * dt;
@@ -215,7 +220,7 @@ pub fn smoothing_window(t: &[f64], x: &[f64], noise: f64, max_half_window: f64) 
         if super::stats::rmse(&r) > 1.1 * noise * (1.0 - c0).sqrt() {
             return best;
         }
-        best = h.min(max_half_window.max(2.5 * dt));
+        best = Some((h.min(max_half_window.max(2.5 * dt)), fit));
         m = (m * 3 / 2).max(m + 1);
     }
 }
@@ -312,20 +317,20 @@ mod tests {
                 .collect()
         };
         let slow = swing(1.0);
-        let h = smoothing_window(&t, &slow, white_noise_rms(&slow), 0.02);
+        let (h, _) = smoothing_window(&t, &slow, white_noise_rms(&slow), 0.02).unwrap();
         // m = 2, 3, 4, 6, 9, 13, 19 samples each side: 19.5 ms, the widest within 20 ms.
         assert!((h - 0.0195).abs() < 1e-9, "{h}");
         let fast = swing(15.0);
-        let h = smoothing_window(&t, &fast, white_noise_rms(&fast), 0.02);
+        let (h, smooth) = smoothing_window(&t, &fast, white_noise_rms(&fast), 0.02).unwrap();
         assert!(h > 0.0 && h < 0.012, "{h}");
-        let (smooth, _, _) = local_fit_of_degree(&t, &fast, h, 2);
+        assert_eq!(smooth, local_fit_of_degree(&t, &fast, h, 2).0);
         let bias: Vec<f64> = (100..n - 100)
             .map(|k| smooth[k] - 0.1 * (std::f64::consts::TAU * 15.0 * t[k]).sin())
             .collect();
         // Still less than the noise it started with, flattening included.
         assert!(crate::identify::stats::rmse(&bias) < 0.8 * 2e-4);
         // No noise: nothing to average out.
-        assert_eq!(smoothing_window(&t, &slow, 0.0, 0.02), 0.0);
+        assert!(smoothing_window(&t, &slow, 0.0, 0.02).is_none());
     }
 
     #[test]
