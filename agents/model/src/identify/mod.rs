@@ -531,14 +531,14 @@ pub fn identify(
     refused.extend(
         not_added
             .into_iter()
-            .map(|(effect, best_gain, score)| Refused {
-                effect,
-                best_gain,
-                why: if score == select::REPLACES_INERTIA {
-                    "a lag that would take the inertia's place: the rates' q̈ too noisy to tell a lag from the inertia"
-                } else if best_gain < opts.min_gain {
+            .map(|n| Refused {
+                effect: n.effect,
+                best_gain: n.gain,
+                why: if let Some(why) = n.why {
+                    why
+                } else if n.gain < opts.min_gain {
                     "its best validation gain is below the threshold"
-                } else if score <= 0.0 {
+                } else if n.score <= 0.0 {
                     "its gain is within what the residual's effective samples explain (information criterion)"
                 } else {
                     "another effect scored higher and this one was not needed after it"
