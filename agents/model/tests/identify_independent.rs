@@ -276,6 +276,33 @@ fn under_an_encoders_noise_viscous_friction_is_not_taken_for_a_lag_of_the_deflec
     }
 }
 
+#[test]
+fn a_stop_the_data_barely_passes_on_one_side_is_found_as_one_stop_on_both() {
+    // 100 Hz ramp-and-hold: the wound side passes the stop's onset by little, and a stop of
+    // its own there traded onset for rate (found at 0.3 of the rate, 5× the clean twin's
+    // error held out). One stop on both sides, MODEL.md's k_s·max(|x| − x_s, 0)·sgn x, is
+    // searched in its own family.
+    let c = case(Plant::Lever, Some(Inject::HardStop), 7, 100.0, 0.005);
+    let truth = generate(&c, 0).size;
+    let id = identify_case(&c);
+    let up = param_of(&id, "onset_rad");
+    let down = param_of(&id, "onset_negative_rad");
+    assert!(
+        (up / truth - 1.0).abs() < 0.03,
+        "onset {up} against {truth}"
+    );
+    assert!(
+        (-down / truth - 1.0).abs() < 0.03,
+        "onset {down} against −{truth}"
+    );
+    let (k_up, k_down) = (
+        param_of(&id, "stop_rate_nm_per_rad"),
+        param_of(&id, "stop_rate_negative_nm_per_rad"),
+    );
+    assert!((k_up / k_down - 1.0).abs() < 0.1, "rates {k_up}, {k_down}");
+    within_a_tenth_of_the_clean_twin(&c, &id);
+}
+
 /// A parameter of the one effect a case's identification named.
 fn param_of(id: &Identified, name: &str) -> f64 {
     assert_eq!(id.effects.len(), 1, "{:?}", id.effects);

@@ -150,6 +150,10 @@ pub struct Shaped {
     /// x₊, the positive side's). A torsion spring wound and unwound meets different stops at
     /// different deflections. NaN where the data never reaches that side.
     pub lower: f64,
+    /// For a hard stop: one stop, the same onset and rate on both sides (`lower` = `shape`),
+    /// MODEL.md §6.1's k_s·max(|x| − x_s, 0)·sgn x. Where the data barely passes one side's
+    /// onset, that side's own onset and rate trade off and extrapolate badly.
+    pub symmetric: bool,
 }
 
 impl Shaped {
@@ -160,6 +164,7 @@ impl Shaped {
             on: Place::Torque,
             size: f64::NAN,
             lower: f64::NAN,
+            symmetric: false,
         }
     }
 
@@ -171,10 +176,20 @@ impl Shaped {
         }
     }
 
+    /// One hard stop at x_s on both sides, one rate.
+    pub(crate) fn symmetric_stop(at: f64) -> Self {
+        Self {
+            symmetric: true,
+            ..Self::stops(at, at)
+        }
+    }
+
     /// Whether two have the same shape (the searched numbers, NaN equal to NaN).
     pub(crate) fn same_shape(&self, other: &Shaped) -> bool {
         let eq = |a: f64, b: f64| a == b || (a.is_nan() && b.is_nan());
-        eq(self.shape, other.shape) && eq(self.lower, other.lower)
+        eq(self.shape, other.shape)
+            && eq(self.lower, other.lower)
+            && self.symmetric == other.symmetric
     }
 
     /// Whether it acts by changing the inputs the declared model sees (a lag, a gap, an
@@ -205,6 +220,14 @@ impl Shaped {
                 .collect(),
             Effect::CoulombFriction => vec![(s.dir.clone(), Bound::NonNegative)],
             Effect::ViscousFriction => vec![(s.xdot.clone(), Bound::NonNegative)],
+            Effect::HardStop if self.symmetric => vec![(
+                xs.iter()
+                    .map(|&v| {
+                        crate::live::stop_side(v, r, 1.0) + crate::live::stop_side(v, r, -1.0)
+                    })
+                    .collect(),
+                Bound::NonNegative,
+            )],
             // Each side's column is ≤ 0 or ≥ 0 with the side, so k± ≥ 0 stiffens.
             Effect::HardStop => [(r, 1.0), (self.lower, -1.0)]
                 .into_iter()
@@ -299,6 +322,7 @@ impl Shaped {
         let shaped = usize::from(self.shape.is_finite() && self.effect != Effect::Hysteresis);
         match self.effect {
             // Each side that stiffens has its onset searched.
+            Effect::HardStop if self.symmetric => 2,
             Effect::HardStop => (2 * fitted).max(1),
             // A torque that leads the deflection is, to first order in δ, viscous friction
             // k·δ·ẋ; in the link equation either lag is, to first order, a change of the
@@ -354,6 +378,12 @@ impl Shaped {
             ],
             Effect::CoulombFriction => vec![("friction_nm", c(0))],
             Effect::ViscousFriction => vec![("damping_nms_per_rad", c(0))],
+            Effect::HardStop if self.symmetric => vec![
+                ("onset_rad", self.shape),
+                ("stop_rate_nm_per_rad", c(0)),
+                ("onset_negative_rad", -self.shape),
+                ("stop_rate_negative_nm_per_rad", c(0)),
+            ],
             Effect::HardStop => {
                 // Only the sides that stiffen: onset_rad > 0 wound, < 0 unwound.
                 let mut p = Vec::new();

@@ -81,9 +81,12 @@ pub(crate) fn candidates(p: &Problem, opts: &Options, dt: f64, duration: f64) ->
                     }
                 };
                 let (up, down) = (side(hi), side(-lo));
+                // And one stop the same on both sides, at a fraction of the farther reach.
+                let both = AT.iter().map(|f| Shaped::symmetric_stop(f * hi.max(-lo)));
                 Ok(up
                     .iter()
                     .flat_map(|&u| down.iter().map(move |&d| Shaped::stops(u, d)))
+                    .chain(both)
                     .collect())
             }
             (Effect::GeometricStiffness, true)
@@ -1017,6 +1020,20 @@ fn search(
     validate: &[usize],
     progress: &mut dyn FnMut(),
 ) -> Option<(Shaped, f64, usize)> {
+    // A stop the same on both sides and one of its own on each are refined each in their
+    // family: the coarse grid's best is often the asymmetric pair, whose refinement then
+    // never reaches the symmetric stop that validates better (a side the data barely passes).
+    if grid.iter().any(|c| c.symmetric) && grid.iter().any(|c| !c.symmetric) {
+        let (both, each): (Vec<Shaped>, Vec<Shaped>) = grid.iter().partition(|c| c.symmetric);
+        let a = search(p, sig, chosen, &both, train, validate, progress);
+        let b = search(p, sig, chosen, &each, train, validate, progress);
+        let tried = a.map_or(0, |r| r.2) + b.map_or(0, |r| r.2);
+        return [a, b]
+            .into_iter()
+            .flatten()
+            .min_by(|x, y| x.1.total_cmp(&y.1))
+            .map(|(c, e, _)| (c, e, tried.max(grid.len())));
+    }
     let trial_at = |cand: Shaped| -> Option<f64> {
         let mut trial = chosen.to_vec();
         trial.push(cand);
@@ -1050,9 +1067,20 @@ fn search(
     // fraction of the grid's spacing leaves structure that a companion would pick up. A hard
     // stop has two onsets, each refined in turn.
     type Coordinate = (fn(&Shaped) -> f64, fn(Shaped, f64) -> Shaped);
+    // A symmetric stop moves both onsets together (its `lower` is its `shape`).
     let coordinates: [Coordinate; 2] = [
-        (|c| c.shape, |c, v| Shaped { shape: v, ..c }),
-        (|c| c.lower, |c, v| Shaped { lower: v, ..c }),
+        (
+            |c| c.shape,
+            |c, v| Shaped {
+                shape: v,
+                lower: if c.symmetric { v } else { c.lower },
+                ..c
+            },
+        ),
+        (
+            |c| if c.symmetric { f64::NAN } else { c.lower },
+            |c, v| Shaped { lower: v, ..c },
+        ),
     ];
     for (get, set) in coordinates {
         let mut same: Vec<f64> = Vec::new();
@@ -1060,7 +1088,10 @@ fn search(
             same = grid
                 .iter()
                 .filter(|g| {
-                    g.on == b.on && get(g).is_finite() && get(g).signum() == get(&b).signum()
+                    g.on == b.on
+                        && g.symmetric == b.symmetric
+                        && get(g).is_finite()
+                        && get(g).signum() == get(&b).signum()
                 })
                 .map(get)
                 .collect();
