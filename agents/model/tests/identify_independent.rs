@@ -267,12 +267,7 @@ fn under_an_encoders_noise_viscous_friction_is_not_taken_for_a_lag_of_the_deflec
             (b / truth - 1.0).abs() < 0.1,
             "{c:?}: b {b} against {truth}"
         );
-        let floor = floor_of(&c);
-        assert!(
-            id.after.rmse < 1.15 * floor,
-            "{c:?}: held-out {} against the clean twin's {floor}",
-            id.after.rmse
-        );
+        within_the_clean_twin(&c, &id, 1.15);
     }
 }
 
@@ -315,10 +310,15 @@ fn param_of(id: &Identified, name: &str) -> f64 {
 
 /// The held-out error of a case's identification within 10 % of its clean twin's.
 fn within_a_tenth_of_the_clean_twin(c: &Case, id: &Identified) {
+    within_the_clean_twin(c, id, 1.1);
+}
+
+/// The held-out error of a case's identification under `factor` × its clean twin's.
+fn within_the_clean_twin(c: &Case, id: &Identified, factor: f64) {
     let floor = floor_of(c);
     assert!(
-        id.after.rmse < 1.1 * floor,
-        "held-out {} against the clean twin's {floor}",
+        id.after.rmse < factor * floor,
+        "{c:?}: held-out {} against the clean twin's {floor}",
         id.after.rmse
     );
 }
