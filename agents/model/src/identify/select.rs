@@ -978,6 +978,15 @@ fn settle_restoring(
             let Some((_, grid)) = cands.iter().find(|(e, _)| *e == chosen[k].effect) else {
                 continue;
             };
+            // One stop on both sides stays one: against a loop refitted around it, a stop of
+            // its own on each side validated better by trading a side's onset for its rate
+            // (a lever seed, 10× its floor held out). Two stops may still settle into one,
+            // the simpler claim (another seed, 1.6× → 1.07× its floor).
+            let grid: Vec<Shaped> = grid
+                .iter()
+                .filter(|c| c.symmetric || !chosen[k].symmetric)
+                .copied()
+                .collect();
             let others: Vec<Shaped> = chosen
                 .iter()
                 .copied()
@@ -990,7 +999,7 @@ fn settle_restoring(
                 p,
                 &sig,
                 &others,
-                grid,
+                &grid,
                 &rows.train,
                 &rows.validate,
                 progress,
