@@ -220,14 +220,19 @@ impl Shaped {
                 .collect(),
             Effect::CoulombFriction => vec![(s.dir.clone(), Bound::NonNegative)],
             Effect::ViscousFriction => vec![(s.xdot.clone(), Bound::NonNegative)],
-            Effect::HardStop if self.symmetric => vec![(
-                xs.iter()
-                    .map(|&v| {
-                        crate::live::stop_side(v, r, 1.0) + crate::live::stop_side(v, r, -1.0)
-                    })
-                    .collect(),
-                Bound::NonNegative,
-            )],
+            // The live stop's own torque at unit rate on both sides.
+            Effect::HardStop if self.symmetric => {
+                let unit = crate::live::HardStop {
+                    onset_rad: r,
+                    rate_nm_per_rad: 1.0,
+                    onset_negative_rad: -r,
+                    rate_negative_nm_per_rad: 1.0,
+                };
+                vec![(
+                    xs.iter().map(|&v| unit.torque(v)).collect(),
+                    Bound::NonNegative,
+                )]
+            }
             // Each side's column is ≤ 0 or ≥ 0 with the side, so k± ≥ 0 stiffens.
             Effect::HardStop => [(r, 1.0), (self.lower, -1.0)]
                 .into_iter()

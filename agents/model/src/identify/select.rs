@@ -469,16 +469,20 @@ pub(crate) fn forward(
                 };
                 (trial, s)
             };
-            let judge = |c: Shaped, val: f64| -> Result<(Shaped, f64, f64), IdentifyError> {
+            // The candidate, its validation error, its criterion score and its own
+            // coefficients fitted on the fit rows.
+            type Judged = (Shaped, f64, f64, Vec<f64>);
+            let judge = |c: Shaped, val: f64| -> Result<Judged, IdentifyError> {
                 let (trial, s1) = signals_with(&c);
                 let f1 = fit(&s1, &trial, &pe.tau, &rows.fit).ok_or(IdentifyError::Solve)?;
+                let coefs = f1.part(trial.len()).to_vec();
                 if takes_the_inertias_place(pe.model, &c, &all, &f1) {
-                    return Ok((c, val, REPLACES_INERTIA));
+                    return Ok((c, val, REPLACES_INERTIA, coefs));
                 }
                 let (rss1, n_eff) = rss_and_neff(pe, &f1, &rows.fit);
-                let k = c.parameters(f1.part(trial.len()), pe.model.is_joint());
+                let k = c.parameters(&coefs, pe.model.is_joint());
                 let sc = score(rss0, rss1, n_eff, k, tried);
-                Ok((c, val, sc))
+                Ok((c, val, sc, coefs))
             };
             // The validation residual of `chosen` plus `c`, fitted on the train rows.
             let validation_residual = |c: &Shaped| -> Option<Vec<f64>> {
@@ -501,16 +505,23 @@ pub(crate) fn forward(
                     }
                 }
             }
-            let (cand, val, sc) = judged;
+            let (cand, val, sc, coefs) = judged;
             let gain = 1.0 - val / val0;
+            let lag_shown =
+                backwards && cand.effect == Effect::SensorDelay && cand.shape > 0.0 && gain > 0.0;
+            let pays = (gain >= opts.min_gain || lag_shown) && sc > 0.0;
+            let beside_friction = deflection_lag(p.model, &cand) && viscous_share > 0.0;
+            // Its validation residual, fitted once for the rule below and for the ranking.
+            let residual = (pays || beside_friction)
+                .then(|| validation_residual(&cand))
+                .flatten();
             // A lag of the deflection beside viscous friction already chosen: to first order
             // the same column, and what it gains over the friction may be only the rate's
             // noise that the friction's column carries (see `rank`).
-            if deflection_lag(p.model, &cand)
-                && viscous_share > 0.0
-                && validation_residual(&cand).is_some_and(|with| {
+            if beside_friction
+                && residual.as_ref().is_some_and(|with| {
                     let now = now.residual_on(&p.tau, &rows.validate);
-                    !clearly_better(p, &rows.validate, &with, &now, viscous_share)
+                    !clearly_better(p, &rows.validate, with, &now, viscous_share)
                 })
             {
                 per_effect.push(NotAdded {
@@ -520,27 +531,21 @@ pub(crate) fn forward(
                 continue;
             }
             per_effect.push(NotAdded::new(*e, gain, sc));
-            let lag_shown =
-                backwards && cand.effect == Effect::SensorDelay && cand.shape > 0.0 && gain > 0.0;
-            if (gain >= opts.min_gain || lag_shown) && sc > 0.0 {
+            if pays {
                 let curve = (!std::ptr::eq(pe, &*p))
                     .then(|| pe.restoring.clone())
                     .flatten();
-                let residual = validation_residual(&cand).unwrap_or_default();
                 // What viscous friction's column carries of the encoder's noise: b times the
                 // rate's noise.
-                let rate_noise_share = if cand.effect == Effect::ViscousFriction {
-                    let (trial, s1) = signals_with(&cand);
-                    fit(&s1, &trial, &pe.tau, &rows.fit)
-                        .map_or(0.0, |f| (f.part(trial.len())[0] * pe.rate_noise()).powi(2))
-                } else {
-                    0.0
+                let rate_noise_share = match (cand.effect, coefs.first()) {
+                    (Effect::ViscousFriction, Some(b)) => (b * pe.rate_noise()).powi(2),
+                    _ => 0.0,
                 };
                 paying.push(Paying {
                     shape: cand,
                     gain,
                     score: sc,
-                    residual,
+                    residual: residual.unwrap_or_default(),
                     curve,
                     rate_noise_share,
                 });
