@@ -28,7 +28,7 @@ fn run_of(name: &str, plant: Plant, d: &plants::Data) -> Run {
         tau: d.tau.clone(),
         phi: joint.then(|| d.x.clone()),
         // The lever's pivot position, as a recording of a lever joint carries it.
-        d: (plant == Plant::Lever).then(|| vec![plants::LEVER_PIVOT_M; d.t.len()]),
+        d: (plant == Plant::Lever).then(|| vec![plants::PlantParams::of(plant).pivot; d.t.len()]),
         q: (!joint).then(|| d.x.clone()),
     }
 }
@@ -409,7 +409,9 @@ fn table_over_many_seeds() {
         .unwrap_or(12);
     // VERBOSE=1 lists every case's names on stderr; SEED0 starts the seeds elsewhere. Stress
     // runs change the generator (plants/mod.rs): SIZE_SCALE scales every effect (a larger stop
-    // engages earlier), NOISE_SCALE the torque noise, DURATION_S the runs' length. MIN_GAIN
+    // engages earlier), NOISE_SCALE the torque noise, DURATION_S the runs' length, and the
+    // plants' own parameters move with AMPLITUDE_SCALE, K_LINEAR, PIVOT_MM, BW_SHARE, BW_YIELD,
+    // BW_N, BW_GAMMA, INERTIA, DAMPING, COUNTS and F_MAX (`plants::PlantParams`). MIN_GAIN
     // overrides identify's smallest validation gain (default 5 %), RATE_WINDOW fixes the rates'
     // half-window [s] (else identify chooses it).
     println!(

@@ -326,11 +326,12 @@ pub const LEVER_PIVOT_M: f64 = 0.009;
 
 /// Paper B's lever (MODEL.md §1) at d_a: exact static torque of the spring through the lever.
 pub fn lever_torque(phi: f64) -> f64 {
-    let (p, d_a, k_alpha) = (
-        0.0315,
-        0.0096 + LEVER_PIVOT_M,
-        978.8e-3 / 43f64.to_radians(),
-    );
+    lever_torque_at(phi, LEVER_PIVOT_M)
+}
+
+/// The same at another pivot position `pivot` [m] (from 9.6 mm).
+pub fn lever_torque_at(phi: f64, pivot: f64) -> f64 {
+    let (p, d_a, k_alpha) = (0.0315, 0.0096 + pivot, 978.8e-3 / 43f64.to_radians());
     let beta = (p * phi.sin()).atan2(p * phi.cos() - d_a);
     let alpha = beta - phi;
     let l = ((p * phi.cos() - d_a).powi(2) + (p * phi.sin()).powi(2)).sqrt();
@@ -338,29 +339,74 @@ pub fn lever_torque(phi: f64) -> f64 {
     g * k_alpha * alpha
 }
 
-/// A Bouc-Wen element (n = 1) in deflection space: ż = ẋ·(A − (β·sgn(ẋ·z) + γ)·|z|), with
-/// yield z_max = A/(β + γ); integrated with substeps.
+/// A Bouc-Wen element in deflection space (MODEL.md §2 with A = 1):
+/// ż = ẋ·(1 − (β·sgn(ẋ·z) + γ)·|z|ⁿ), with yield z_max = (β + γ)^(−1/n); integrated with
+/// substeps. `BW_N` sets n (1 by default; larger n, sharper corners), `BW_GAMMA` the share
+/// γ/(β + γ) (½ by default; 0 unloads along a softer, rounder branch).
 #[derive(Debug, Clone, Copy)]
 struct BoucWen {
     z: f64,
     beta: f64,
     gamma: f64,
+    n: f64,
 }
 
 impl BoucWen {
     fn new(z_max: f64) -> Self {
+        let n = env_f64("BW_N", 1.0);
+        let share = env_f64("BW_GAMMA", 0.5);
+        let sum = 1.0 / z_max.powf(n);
         Self {
             z: 0.0,
-            beta: 0.5 / z_max,
-            gamma: 0.5 / z_max,
+            beta: (1.0 - share) * sum,
+            gamma: share * sum,
+            n,
         }
     }
     fn step(&mut self, dx: f64) {
-        let n = 20;
-        let h = dx / n as f64;
-        for _ in 0..n {
+        let substeps = 20;
+        let h = dx / substeps as f64;
+        for _ in 0..substeps {
             let s = if h * self.z >= 0.0 { 1.0 } else { -1.0 };
-            self.z += h * (1.0 - (self.beta * s + self.gamma) * self.z.abs());
+            self.z += h * (1.0 - (self.beta * s + self.gamma) * self.z.abs().powf(self.n));
+        }
+    }
+}
+
+/// A plant's parameters. The defaults are the tables' plants; stress runs move them:
+/// `AMPLITUDE_SCALE` (the joints' ±0.06 rad, the link's ±1 rad), `K_LINEAR` (the linear
+/// spring's 2 N·m/rad), `PIVOT_MM` (the lever's pivot, 9 mm from its closest point),
+/// `BW_SHARE` (the lever's share through its friction element, 0.2) and `BW_YIELD` (its yield
+/// over the amplitude, 0.15), `INERTIA` and `DAMPING` (the link's 0.05 kg·m² and 0.4
+/// N·m·s/rad), `COUNTS` (the encoder's counts per turn: 65 536 on a joint's deflection, 16 384
+/// on a link's angle) and `F_MAX` (the multi-sine's highest frequency: 1 Hz on a joint, 1.5 Hz
+/// on a link).
+#[derive(Debug, Clone, Copy)]
+pub struct PlantParams {
+    pub amplitude: f64,
+    pub k_linear: f64,
+    pub pivot: f64,
+    pub bw_share: f64,
+    pub bw_yield: f64,
+    pub inertia: f64,
+    pub damping: f64,
+    pub counts: f64,
+    pub f_max: f64,
+}
+
+impl PlantParams {
+    pub fn of(plant: Plant) -> Self {
+        let link = plant == Plant::Link;
+        Self {
+            amplitude: env_f64("AMPLITUDE_SCALE", 1.0) * if link { 1.0 } else { 0.06 },
+            k_linear: env_f64("K_LINEAR", 2.0),
+            pivot: env_f64("PIVOT_MM", LEVER_PIVOT_M * 1e3) / 1e3,
+            bw_share: env_f64("BW_SHARE", 0.2),
+            bw_yield: env_f64("BW_YIELD", 0.15),
+            inertia: env_f64("INERTIA", 0.05),
+            damping: env_f64("DAMPING", 0.4),
+            counts: env_f64("COUNTS", if link { 16384.0 } else { 65536.0 }),
+            f_max: env_f64("F_MAX", if link { 1.5 } else { 1.0 }),
         }
     }
 }
@@ -368,8 +414,7 @@ impl BoucWen {
 /// The rate viscous friction is sized at (b·rate = the effect's size): a 0.5 Hz swing of the
 /// plant's amplitude, its rms rate [rad/s].
 pub fn viscous_rate_scale(plant: Plant) -> f64 {
-    let amplitude = if plant == Plant::Link { 1.0 } else { 0.06 };
-    amplitude * TAU * 0.5 / 2f64.sqrt()
+    PlantParams::of(plant).amplitude * TAU * 0.5 / 2f64.sqrt()
 }
 
 /// Generates one run of a case. `variant` changes the motion's random draw (0 for the fit
@@ -377,20 +422,21 @@ pub fn viscous_rate_scale(plant: Plant) -> f64 {
 pub fn generate(c: &Case, variant: u64) -> Data {
     let mut rng = Rng::new(c.seed.wrapping_mul(7919).wrapping_add(variant * 104_729));
     let mut size_rng = Rng::new(c.seed.wrapping_mul(31337) ^ 0xA5A5);
-    let link = c.plant == Plant::Link;
-    let amplitude = if link { 1.0 } else { 0.06 };
-    let traj = Trajectory::new(c.motion, amplitude, if link { 1.5 } else { 1.0 }, &mut rng);
+    let pp = PlantParams::of(c.plant);
+    let amplitude = pp.amplitude;
+    let traj = Trajectory::new(c.motion, amplitude, pp.f_max, &mut rng);
     // The plant runs on a fine grid (10 kHz), sensors sample it at the case's rate.
     let fine = 10_000.0;
     let n_fine = (duration() * fine) as usize + 1;
-    let k_lin = 2.0; // N·m/rad of the linear spring
-    let (inertia, damping) = (0.05, 0.4);
+    let k_lin = pp.k_linear; // N·m/rad of the linear spring
+    let (inertia, damping) = (pp.inertia, pp.damping);
+    let lever = |x: f64| lever_torque_at(x, pp.pivot);
     let inject = c.inject;
     // Peak torque of the clean plant, to size effects and noise (fixed per case, so that the
     // fit and held-out runs carry the same effect).
     let peak = match c.plant {
         Plant::Linear => k_lin * amplitude,
-        Plant::Lever => lever_torque(amplitude),
+        Plant::Lever => lever(amplitude),
         // The same for every run of a case: a 0.5 Hz swing of the link's amplitude.
         Plant::Link => {
             let w = TAU * 0.5;
@@ -421,7 +467,7 @@ pub fn generate(c: &Case, variant: u64) -> Data {
     let ripple_phase = size_rng.range(0.0, TAU);
     let q0 = size_rng.range(-0.5, 0.5);
     let rate_rms = viscous_rate_scale(c.plant);
-    let mut bw = BoucWen::new(0.15 * amplitude);
+    let mut bw = BoucWen::new(pp.bw_yield * amplitude);
     let mut bw_prev_x = 0.0;
     // A lagging sensor reads, at the start of a run, the motion before it: the plant is run
     // from `lead` seconds earlier (else the lagging signal would stand still for its first δ
@@ -457,8 +503,10 @@ pub fn generate(c: &Case, variant: u64) -> Data {
             Plant::Lever => {
                 bw.step(xs - bw_prev_x);
                 bw_prev_x = xs;
-                // 80 % elastic through the lever, 20 % through the friction element.
-                0.8 * lever_torque(xs) + 0.2 * (lever_torque(amplitude) / amplitude) * bw.z
+                // 80 % elastic through the lever, 20 % through the friction element (by
+                // default: BW_SHARE).
+                (1.0 - pp.bw_share) * lever(xs)
+                    + pp.bw_share * (lever(amplitude) / amplitude) * bw.z
             }
             Plant::Link => inertia * a + damping * v,
         };
@@ -499,7 +547,7 @@ pub fn generate(c: &Case, variant: u64) -> Data {
         v[i] * (1.0 - w) + v[i + 1] * w
     };
     let n = (duration() * c.rate_hz) as usize;
-    let resolution = TAU / 16384.0 / if link { 1.0 } else { 4.0 };
+    let resolution = TAU / pp.counts;
     let mut out = Data {
         t: Vec::with_capacity(n),
         x: Vec::with_capacity(n),
