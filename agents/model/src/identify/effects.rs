@@ -439,6 +439,16 @@ impl Shaped {
                         p.push(("jump_nm", c(i)));
                         p.push(("jump_at_s", self.shape));
                     }
+                    // The encoder slip that fits as well (the restoring model: where the two
+                    // could not be told apart, the torque is named).
+                    if self.size.is_finite() {
+                        let slip = if self.shape.is_finite() {
+                            "or_encoder_jump_rad"
+                        } else {
+                            "or_encoder_bias_rad"
+                        };
+                        p.push((slip, -self.size));
+                    }
                     p
                 }
             },
