@@ -217,6 +217,10 @@ fn restoring_model_finds_an_encoder_slip() {
                 (jump + k * 0.01).abs() < 0.15 * k * 0.01,
                 "{jump} vs k = {k}"
             );
+            // Named in the slip's place, the report gives the slip that fits as well.
+            if let Some(slip) = v["effects"][0]["params"]["or_encoder_jump_rad"].as_f64() {
+                assert!((slip - 0.01).abs() < 0.001, "{slip}");
+            }
         }
         other => panic!("offset on {other:?}: {v:#}"),
     }

@@ -367,7 +367,17 @@ fn on_the_lever_an_encoder_slip_is_sized_in_full_though_the_loop_can_hold_part_o
     let c = case(Plant::Lever, Some(Inject::EncoderSlip), 7, 100.0, 0.005);
     let truth = generate(&c, 0).size;
     let id = identify_case(&c);
-    let jump = param_of(&id, "jump_rad");
+    // On the encoder, or on the torque naming the slip that fits as well (at ±0.06 rad the
+    // lever's slope hardly changes: docs/IDENTIFY.md).
+    let on_encoder = id.effects.iter().any(|e| e.on == Some(Place::Deflection));
+    let jump = param_of(
+        &id,
+        if on_encoder {
+            "jump_rad"
+        } else {
+            "or_encoder_jump_rad"
+        },
+    );
     assert!(
         (jump.abs() / truth.abs() - 1.0).abs() < 0.05,
         "slip {jump} against {truth}"
