@@ -110,8 +110,8 @@ impl Outcome {
     }
 }
 
-/// A clean case: plant and motion, seed, rate, torque and encoder noise (their bits).
-type CleanKey = (String, u64, u64, u64, u64);
+/// A clean case: plant and motion, seed, rate, torque and encoder noise, counts (their bits).
+type CleanKey = (String, u64, u64, u64, u64, u64);
 
 /// The clean twin's held-out RMSE after identification, computed once per plant and seed.
 fn floor_of(c: &Case) -> f64 {
@@ -123,6 +123,7 @@ fn floor_of(c: &Case) -> f64 {
         c.rate_hz.to_bits(),
         c.noise.to_bits(),
         c.encoder_noise.to_bits(),
+        c.counts.to_bits(),
     );
     let floors = FLOORS.get_or_init(|| Mutex::new(HashMap::new()));
     if let Some(f) = floors.lock().unwrap().get(&key) {
@@ -309,6 +310,40 @@ fn under_an_encoders_noise_viscous_friction_is_not_taken_for_a_lag_of_the_deflec
 }
 
 #[test]
+fn with_paper_bs_14_bit_encoder_viscous_friction_is_not_taken_for_a_lag_of_the_deflection() {
+    // Paper B's AS5048A (14 bits) over ±0.06 rad: its counts reach a 2 N·m/rad spring's torque
+    // as k·q/√12, 12 % of 0.5 % torque noise in variance. A lag of the deflection interpolates
+    // the counts (and its delay is chosen on the validation blocks, where the friction's b is
+    // fitted low on a rate the counts make noisy): it validated 2–5 % better than the viscous
+    // friction that was there and was named for it (1 kHz ramp-and-hold; 200 Hz ramp-and-hold
+    // at 2 % noise), or beside it (200 Hz multi-sine).
+    let fourteen_bit = |c: Case| Case {
+        counts: 16384.0,
+        ..c
+    };
+    let clean = fourteen_bit(cases(Plant::Linear, None, 1..2)[0]);
+    let o = outcome(&clean);
+    assert!(
+        o.names.is_empty(),
+        "{clean:?}: clean data, yet {:?}",
+        o.names
+    );
+    for seed in [1, 2, 3] {
+        let c = fourteen_bit(cases(Plant::Linear, Some(Inject::Viscous), seed..seed + 1)[0]);
+        let truth = generate(&c, 0).size / plants::viscous_rate_scale(Plant::Linear);
+        let id = identify_case(&c);
+        let names: Vec<&str> = id.effects.iter().map(|e| e.effect.name()).collect();
+        assert_eq!(names, ["viscous_friction"], "{c:?}");
+        let b = param_of(&id, "damping_nms_per_rad");
+        assert!(
+            (b / truth - 1.0).abs() < 0.1,
+            "{c:?}: b {b} against {truth}"
+        );
+        within_the_clean_twin(&c, &id, 1.15);
+    }
+}
+
+#[test]
 fn a_stop_the_data_barely_passes_on_one_side_is_found_as_one_stop_on_both() {
     // 100 Hz ramp-and-hold: the wound side passes the stop's onset by little, and a stop of
     // its own there traded onset for rate (found at 0.3 of the rate, 5× the clean twin's
@@ -432,6 +467,7 @@ fn case(plant: Plant, inject: Option<Inject>, seed: u64, rate_hz: f64, noise: f6
         rate_hz,
         noise,
         encoder_noise: 0.0,
+        counts: 0.0,
         seed,
     }
 }

@@ -369,18 +369,22 @@ pub fn identify(
     let before = declared(&mut raw)?;
     let base_before = base_params(opts.model, before.part(0), raw.restoring.as_ref());
     let e_before = before.residual_on(&raw.tau, &rows.held);
-    // What the angle's noise weighs against: the declared model's torque per radian and the
-    // mean square it leaves, on the fit rows (see `Problem::denoise`).
-    let (torque_per_rad, residual_ms) = {
+    // What the angle's noise weighs against: the declared model's torque per radian on the
+    // fit rows, and the torque sensor's own white noise (see `Problem::denoise`).
+    let torque_per_rad = {
         let x = raw.angle();
         let at = |v: &[f64]| -> Vec<f64> { rows.fit.iter().map(|&i| v[i]).collect() };
         let (x, pred) = (at(&x), at(&before.prediction));
         let (mx, mp) = (stats::mean(&x), stats::mean(&pred));
         let cov: f64 = x.iter().zip(&pred).map(|(a, b)| (a - mx) * (b - mp)).sum();
         let var: f64 = x.iter().map(|a| (a - mx).powi(2)).sum();
-        let e = before.residual_on(&raw.tau, &rows.fit);
-        ((cov / var).abs(), rmse(&e).powi(2))
+        (cov / var).abs()
     };
+    let torque_noise = raw
+        .runs
+        .iter()
+        .map(|r| signals::white_noise_rms(&r.tau))
+        .fold(0.0, f64::max);
 
     // Tare: each run's zeros from the rest it starts with.
     let (mut tare, tare_note) = if opts.tare && opts.model.is_joint() {
@@ -432,14 +436,14 @@ pub fn identify(
         let (fit_s, held_s) = (shift(fit_runs, 0), shift(held, fit_runs.len()));
         let mut p = Problem::new(&fit_s, &held_s, &holdout, opts);
         p.set_rate_window(window);
-        p.denoise(torque_per_rad, residual_ms);
+        p.denoise(torque_per_rad, torque_noise);
         // A shift of the deflection leaves each rest's samples where they were.
         p.loop_rests = loop_rests;
         let base = states::settle(&mut p, &[], &rows)?;
         (p, base)
     } else if tare.is_empty() {
         let mut p = raw.clone();
-        if p.denoise(torque_per_rad, residual_ms) {
+        if p.denoise(torque_per_rad, torque_noise) {
             // Fitted afresh on the data the effects will see, as the other branches' new
             // problems are: started from the raw fit's loop, a lever's loop had absorbed a
             // torque offset (held-out 0.018 against 0.013 N·m with nothing named; 100 Hz, 2
@@ -454,7 +458,7 @@ pub fn identify(
         let (fit_t, held_t) = (tared(fit_runs, 0), tared(held, fit_runs.len()));
         let mut p = Problem::new(&fit_t, &held_t, &holdout, opts);
         p.set_rate_window(window);
-        p.denoise(torque_per_rad, residual_ms);
+        p.denoise(torque_per_rad, torque_noise);
         p.tared = true;
         let base = declared(&mut p)?;
         (p, base)

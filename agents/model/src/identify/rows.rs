@@ -339,18 +339,19 @@ impl Problem {
     ///
     /// Where the white noise is over a third of the dead band (a count, by default), or where
     /// the counts themselves reach the torque: the quantisation's error q/√12 through the
-    /// model's slope `torque_per_rad`, squared, at least 5 % of the declared model's residual
-    /// mean square `residual_ms` (a 14-bit encoder over ±0.06 rad on a linear spring: 12 %
+    /// model's slope `torque_per_rad`, squared, at least 5 % of the torque sensor's own white
+    /// noise `torque_noise` squared (a 14-bit encoder over ±0.06 rad on a linear spring: 12 %
     /// under 0.5 % torque noise, and a lag of the deflection, interpolating the counts,
     /// validated 5 % better than the viscous friction that was there, 3 of 5 seeds; the
     /// table's 16-bit encoder: under 1 %, left as measured). The noise the smoothing is judged
     /// against is at least the quantisation's (a slowly moving quantised angle reads less
     /// white noise than that: its error is a staircase). The link equation's angle is left as
     /// measured. Returns whether any run was smoothed.
-    pub fn denoise(&mut self, torque_per_rad: f64, residual_ms: f64) -> bool {
+    pub fn denoise(&mut self, torque_per_rad: f64, torque_noise: f64) -> bool {
         let quantisation = self.resolution / 12f64.sqrt();
         let noisy = self.angle_noise() > self.dead_band / 3.0;
-        let counts_reach_torque = (torque_per_rad * quantisation).powi(2) >= 0.05 * residual_ms;
+        let counts_reach_torque =
+            (torque_per_rad * quantisation).powi(2) >= 0.05 * torque_noise.powi(2);
         if !self.model.is_joint() || !(noisy || counts_reach_torque) {
             return false;
         }

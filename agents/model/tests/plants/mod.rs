@@ -187,6 +187,8 @@ pub struct Case {
     /// The angle encoder's own noise, rms in counts, before it counts (0: quantisation
     /// only; X_NOISE_COUNTS sets it for stress runs).
     pub encoder_noise: f64,
+    /// The angle encoder's counts per turn (0: the plant's, [`PlantParams`]).
+    pub counts: f64,
     pub seed: u64,
 }
 
@@ -547,7 +549,7 @@ pub fn generate(c: &Case, variant: u64) -> Data {
         v[i] * (1.0 - w) + v[i + 1] * w
     };
     let n = (duration() * c.rate_hz) as usize;
-    let resolution = TAU / pp.counts;
+    let resolution = TAU / if c.counts > 0.0 { c.counts } else { pp.counts };
     let mut out = Data {
         t: Vec::with_capacity(n),
         x: Vec::with_capacity(n),
