@@ -7,7 +7,7 @@ set -euo pipefail
 here="$(cd "$(dirname "$0")/.." && pwd)"
 data="${1:-$here/../shared/data/sea-torsion-springs}"
 out="${2:-${TMPDIR:-/tmp}/rig-springs}"
-rig="${RIG:-$here/target/release/rig}"
+rig="${RIG:-${CARGO_TARGET_DIR:-$here/target}/release/rig}"
 if [ ! -d "$data" ]; then
   echo "no data at $data: put the shared data beside the clone (../shared/data/sea-torsion-springs)" >&2
   exit 2
