@@ -331,7 +331,7 @@ pub(crate) fn forward(
                     q.restoring = Some(refit_restoring(&q, &trial, &rows.fit)?);
                 }
                 if cand.effect != Effect::Offset {
-                    q.restoring = Some(profile_friction(&q, &sig, &chosen, &cand, &rows.fit)?);
+                    q.restoring = Some(profile_coefficient(&q, &sig, &chosen, &cand, &rows.fit)?);
                 }
                 let v = validation_error(&q, &trial, rows)?;
                 refitted = q;
@@ -792,7 +792,7 @@ fn friction_seeded_loop(
 /// loop's height and friction dissipate, and alternating stalls with the loop holding part of
 /// the friction (the same stall as an encoder slip's, [`profile_slip`]). A torque step is
 /// profiled the same way (its jump; any sign), for the twin of a slip ([`torque_twin`]).
-fn profile_friction(
+fn profile_coefficient(
     q: &Problem,
     sig: &Signals,
     chosen: &[Shaped],
@@ -958,7 +958,7 @@ fn profile_slip(
 /// The torque-offset twin of the settled encoder slip `slip` on the restoring model: a torque
 /// offset at the same instant (a constant where the slip is one), its loop refitted on the
 /// uncorrected input from the slip's loop, alternated, then profiled over the step's size as
-/// friction's is ([`profile_friction`]). The two have as many parameters, so they are compared
+/// friction's is ([`profile_coefficient`]). The two have as many parameters, so they are compared
 /// on the fit rows, each fitted there — what tells them apart, the loop driven through the
 /// encoder's jump or not, lasts a moment where the jump is, which the validation blocks
 /// rarely hold. Returns the problem with the twin's loop, the twin (its `size` the slip's
@@ -981,7 +981,7 @@ fn torque_twin(
         qt.restoring = Some(refit_restoring(&qt, &trial, &rows.fit).ok()?);
     }
     let sig = qt.signals(sig_transform(&qt, chosen));
-    qt.restoring = Some(profile_friction(&qt, &sig, chosen, &twin, &rows.fit).ok()?);
+    qt.restoring = Some(profile_coefficient(&qt, &sig, chosen, &twin, &rows.fit).ok()?);
     let on_fit = |q: &Problem, trial: &[Shaped]| -> Option<Vec<f64>> {
         Some(
             fit(
