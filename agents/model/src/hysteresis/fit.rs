@@ -78,6 +78,12 @@ pub enum FitError {
          and torque must rise with deflection (fitted slope {slope})"
     )]
     NotASpring { d_m: f64, slope: f64 },
+    #[error("column {column} beside the loop has {values} values for {samples} samples")]
+    ColumnLength {
+        column: usize,
+        values: usize,
+        samples: usize,
+    },
     #[error("cannot build the parameter curve over d: {0}")]
     Curve(#[from] InterpError),
 }
@@ -133,6 +139,21 @@ pub fn replay_curve(curve: &RestoringCurve, runs: &[&[FitSample]], dead_band: f6
 
 /// Fits the model to samples that may span several pivot positions.
 pub fn fit_restoring(samples: &[FitSample], opts: &FitOptions) -> Result<RestoringFit, FitError> {
+    fit_restoring_beside(samples, &[], opts).map(|(fit, _)| fit)
+}
+
+/// Fits the model beside known columns of the measured torque, τ = τ̂(φ) + Σ cⱼ·columnⱼ
+/// (a torque sensor's offset, constant or stepping part-way), the loop and the cⱼ together by
+/// Levenberg–Marquardt, from a start that has the columns too. Fitted one after the other,
+/// a loop fitted first holds what it can of an offset (a tall loop whose transitions carry
+/// the offset from reversal to reversal), and an offset fitted beside that loop is ~0.
+/// Each column has one value per sample. Returns the fit and, per group (in the order of
+/// `groups`), the columns' coefficients.
+pub fn fit_restoring_beside(
+    samples: &[FitSample],
+    columns: &[&[f64]],
+    opts: &FitOptions,
+) -> Result<(RestoringFit, Vec<Vec<f64>>), FitError> {
     if samples.is_empty() {
         return Err(FitError::Empty);
     }
@@ -142,31 +163,52 @@ pub fn fit_restoring(samples: &[FitSample], opts: &FitOptions) -> Result<Restori
     {
         return Err(FitError::NonFinite { index });
     }
-    let mut groups = Vec::new();
-    for runs in group_runs(samples, opts.d_tolerance) {
-        groups.push(fit_group(&runs, opts)?);
+    for (column, c) in columns.iter().enumerate() {
+        if c.len() != samples.len() {
+            return Err(FitError::ColumnLength {
+                column,
+                values: c.len(),
+                samples: samples.len(),
+            });
+        }
+        if let Some(index) = c.iter().position(|v| !v.is_finite()) {
+            return Err(FitError::NonFinite { index });
+        }
     }
-    groups.sort_by(|a, b| a.d.total_cmp(&b.d));
-    let table: Vec<(f64, RestoringParams)> = groups.iter().map(|g| (g.d, g.params)).collect();
-    Ok(RestoringFit {
-        curve: RestoringCurve::new(&table)?.with_envelope(opts.envelope),
-        groups,
-    })
+    let mut groups = Vec::new();
+    for ranges in group_runs(samples, opts.d_tolerance) {
+        let runs: Vec<&[FitSample]> = ranges.iter().map(|r| &samples[r.clone()]).collect();
+        let cols: Vec<Vec<&[f64]>> = columns
+            .iter()
+            .map(|c| ranges.iter().map(|r| &c[r.clone()]).collect())
+            .collect();
+        groups.push(fit_group(&runs, &cols, opts)?);
+    }
+    groups.sort_by(|a, b| a.0.d.total_cmp(&b.0.d));
+    let table: Vec<(f64, RestoringParams)> = groups.iter().map(|g| (g.0.d, g.0.params)).collect();
+    let (groups, coefs) = groups.into_iter().unzip();
+    Ok((
+        RestoringFit {
+            curve: RestoringCurve::new(&table)?.with_envelope(opts.envelope),
+            groups,
+        },
+        coefs,
+    ))
 }
 
-/// Splits samples into runs of constant d and groups runs of the same d.
-fn group_runs(samples: &[FitSample], tol: f64) -> Vec<Vec<&[FitSample]>> {
-    let mut runs: Vec<&[FitSample]> = Vec::new();
+/// Splits samples into runs of constant d and groups runs of the same d (index ranges).
+fn group_runs(samples: &[FitSample], tol: f64) -> Vec<Vec<std::ops::Range<usize>>> {
+    let mut runs: Vec<std::ops::Range<usize>> = Vec::new();
     let mut start = 0;
     for i in 1..=samples.len() {
         if i == samples.len() || (samples[i].d - samples[start].d).abs() > tol {
-            runs.push(&samples[start..i]);
+            runs.push(start..i);
             start = i;
         }
     }
-    let mut groups: Vec<(f64, Vec<&[FitSample]>)> = Vec::new();
+    let mut groups: Vec<(f64, Vec<std::ops::Range<usize>>)> = Vec::new();
     for run in runs {
-        let d = run[0].d;
+        let d = samples[run.start].d;
         match groups.iter_mut().find(|(gd, _)| (gd - d).abs() <= tol) {
             Some((_, g)) => g.push(run),
             None => groups.push((d, vec![run])),
@@ -175,7 +217,13 @@ fn group_runs(samples: &[FitSample], tol: f64) -> Vec<Vec<&[FitSample]>> {
     groups.into_iter().map(|(_, g)| g).collect()
 }
 
-fn fit_group(runs: &[&[FitSample]], opts: &FitOptions) -> Result<GroupFit, FitError> {
+/// One group's fit; `cols` holds each column beside the loop, run by run. Returns the fit and
+/// the columns' coefficients.
+fn fit_group(
+    runs: &[&[FitSample]],
+    cols: &[Vec<&[f64]>],
+    opts: &FitOptions,
+) -> Result<(GroupFit, Vec<f64>), FitError> {
     let all = || runs.iter().flat_map(|r| r.iter());
     let samples = all().count();
     let d = all().map(|s| s.d).sum::<f64>() / samples as f64;
@@ -211,11 +259,23 @@ fn fit_group(runs: &[&[FitSample]], opts: &FitOptions) -> Result<GroupFit, FitEr
         }
     }
     let det = sxx * sss - sxs * sxs;
-    let (k0, h0) = if det.abs() > 0.0 {
+    let (mut k0, mut h0) = if det.abs() > 0.0 {
         ((sxt * sss - sst * sxs) / det, (sst * sxx - sxt * sxs) / det)
     } else {
         (f64::NAN, f64::NAN)
     };
+    // With columns beside the loop they are in the linear start too (else the start's h takes
+    // an offset's share on a motion that loads longer than it unloads).
+    let flat: Vec<Vec<f64>> = cols.iter().map(|c| c.concat()).collect();
+    let mut c0 = vec![0.0; flat.len()];
+    if !flat.is_empty()
+        && let Some(x) = linear_start_beside(runs, &flat, opts)
+        && x[0].is_finite()
+        && x[0] > 0.0
+    {
+        (k0, h0) = (x[0], x[1]);
+        c0.copy_from_slice(&x[2..]);
+    }
     if !(both_ways.0 && both_ways.1 && k0.is_finite() && k0 > 0.0) {
         return Err(FitError::NotASpring { d_m: d, slope: k0 });
     }
@@ -231,7 +291,8 @@ fn fit_group(runs: &[&[FitSample]], opts: &FitOptions) -> Result<GroupFit, FitEr
         dead_band: opts.dead_band,
         envelope: opts.envelope,
         tau,
-        theta: DVector::zeros(4),
+        columns: flat,
+        theta: DVector::zeros(4 + cols.len()),
     };
     // The starts: a grid over n and where the transition meets the other line, and the loop
     // a refit replaces; Levenberg–Marquardt goes on from whichever replays closest.
@@ -240,21 +301,20 @@ fn fit_group(runs: &[&[FitSample]], opts: &FitOptions) -> Result<GroupFit, FitEr
         for &frac in &[0.01, 0.03, 0.1, 0.3] {
             let u0: f64 = frac * span;
             let a_s = (2.0 * h0 + k0 * u0) / u0.powf(n);
-            starts.push(DVector::from_vec(vec![
-                k0.ln(),
-                h0.ln(),
-                a_s.ln(),
-                f64::ln(n),
-            ]));
+            let mut theta = vec![k0.ln(), h0.ln(), a_s.ln(), f64::ln(n)];
+            theta.extend(&c0);
+            starts.push(DVector::from_vec(theta));
         }
     }
     if let Some(p) = opts.start {
-        let theta = DVector::from_vec(vec![p.k.ln(), p.h.ln(), p.a_s.ln(), p.n.ln()]);
+        let mut theta = vec![p.k.ln(), p.h.ln(), p.a_s.ln(), p.n.ln()];
+        theta.extend(&c0);
+        let theta = DVector::from_vec(theta);
         if theta.iter().all(|v| v.is_finite()) {
             starts.push(theta);
         }
     }
-    let mut best = (f64::INFINITY, DVector::zeros(4));
+    let mut best = (f64::INFINITY, DVector::zeros(4 + cols.len()));
     for theta in starts {
         problem.set_params(&theta);
         let sse = problem
@@ -283,21 +343,59 @@ fn fit_group(runs: &[&[FitSample]], opts: &FitOptions) -> Result<GroupFit, FitEr
         problem.set_params(&best.1);
     }
     let params = params_of(&problem.theta);
-    let pred = replay(params, opts.envelope, runs, opts.dead_band);
+    let pred = problem.predict(&problem.theta);
     let (mut abs, mut sq) = (0.0, 0.0);
     for (p, s) in pred.iter().zip(all()) {
         let e = p - s.tau;
         abs += e.abs();
         sq += e * e;
     }
-    Ok(GroupFit {
-        d,
-        params,
-        samples,
-        mae: abs / samples as f64,
-        rmse: (sq / samples as f64).sqrt(),
-        peak,
-    })
+    Ok((
+        GroupFit {
+            d,
+            params,
+            samples,
+            mae: abs / samples as f64,
+            rmse: (sq / samples as f64).sqrt(),
+            peak,
+        },
+        problem.theta.iter().skip(4).copied().collect(),
+    ))
+}
+
+/// The linear start beside columns: least squares of τ on [s(φ), direction, columns…] over
+/// the samples with a known direction. `None` where the system is singular.
+fn linear_start_beside(
+    runs: &[&[FitSample]],
+    flat: &[Vec<f64>],
+    opts: &FitOptions,
+) -> Option<Vec<f64>> {
+    let m = 2 + flat.len();
+    let mut ata = DMatrix::<f64>::zeros(m, m);
+    let mut atb = DVector::<f64>::zeros(m);
+    let mut row = DVector::<f64>::zeros(m);
+    let mut i = 0;
+    for run in runs {
+        let mut det = ReversalDetector::new(opts.dead_band, run[0].phi);
+        for s in run.iter() {
+            det.update(s.phi);
+            let dir = f64::from(det.direction());
+            if dir != 0.0 {
+                row[0] = opts.envelope.s(s.phi, s.d);
+                row[1] = dir;
+                for (j, c) in flat.iter().enumerate() {
+                    row[2 + j] = c[i];
+                }
+                ata += &row * row.transpose();
+                atb += &row * s.tau;
+            }
+            i += 1;
+        }
+    }
+    let x = ata.lu().solve(&atb)?;
+    x.iter()
+        .all(|v| v.is_finite())
+        .then(|| x.iter().copied().collect())
 }
 
 fn params_of(theta: &DVector<f64>) -> RestoringParams {
@@ -315,16 +413,30 @@ struct GroupProblem<'a> {
     dead_band: f64,
     envelope: Envelope,
     tau: DVector<f64>,
+    /// Columns beside the loop (each over all samples, runs in order): θ[4..] their
+    /// coefficients.
+    columns: Vec<Vec<f64>>,
     theta: DVector<f64>,
 }
 
 impl GroupProblem<'_> {
+    /// The torque the loop and the columns give at θ.
+    fn predict(&self, theta: &DVector<f64>) -> Vec<f64> {
+        let mut pred = replay(params_of(theta), self.envelope, &self.runs, self.dead_band);
+        for (c, col) in theta.iter().skip(4).zip(&self.columns) {
+            for (p, v) in pred.iter_mut().zip(col) {
+                *p += c * v;
+            }
+        }
+        pred
+    }
+
     fn residuals_at(&self, theta: &DVector<f64>) -> Option<DVector<f64>> {
-        if theta.iter().any(|v| !v.is_finite() || v.abs() > 50.0) {
+        // θ[..4] are logarithms (kept within e^±50); the columns' coefficients are free.
+        if theta.iter().any(|v| !v.is_finite()) || theta.iter().take(4).any(|v| v.abs() > 50.0) {
             return None;
         }
-        let pred = replay(params_of(theta), self.envelope, &self.runs, self.dead_band);
-        let r = DVector::from_vec(pred) - &self.tau;
+        let r = DVector::from_vec(self.predict(theta)) - &self.tau;
         r.iter().all(|v| v.is_finite()).then_some(r)
     }
 }
@@ -492,6 +604,69 @@ mod tests {
         // With the steps, a cold fit gets there too (the start saves the steps, not the fit).
         let full = fit_restoring(&data, &FitOptions::default()).unwrap();
         assert!(off(full.groups[0].params) < 1e-3);
+    }
+
+    #[test]
+    fn an_offset_and_a_step_beside_the_loop_come_back_with_it_where_the_loop_alone_cannot_hold_them()
+     {
+        // The model's own torque plus a sensor's zero (0.05 N·m) that steps by −0.03 N·m
+        // half-way: fitted together with the loop (from a cold start), both come back with
+        // the loop's parameters; the loop fitted alone leaves far more.
+        let d = 0.009;
+        let t = truth(d);
+        let (c, jump, at) = (0.05, -0.03, 1500);
+        let mut data = synth(&[d], true);
+        let ones = vec![1.0; data.len()];
+        let step: Vec<f64> = (0..data.len()).map(|i| f64::from(i >= at)).collect();
+        for (i, s) in data.iter_mut().enumerate() {
+            s.tau += c + jump * step[i];
+        }
+        let (fit, coefs) =
+            fit_restoring_beside(&data, &[&ones, &step], &FitOptions::default()).unwrap();
+        let (g, cs) = (fit.groups[0], &coefs[0]);
+        for (name, a, b) in [
+            ("k", g.params.k, t.k),
+            ("h", g.params.h, t.h),
+            ("a_s", g.params.a_s, t.a_s),
+            ("n", g.params.n, t.n),
+        ] {
+            assert!((a - b).abs() < 1e-3 * b, "{name}: fitted {a}, true {b}");
+        }
+        assert!(
+            (cs[0] - c).abs() < 1e-4 && (cs[1] - jump).abs() < 1e-4,
+            "{cs:?}"
+        );
+        assert!(g.rmse < 1e-4 * g.peak, "rmse {}", g.rmse);
+        let alone = fit_restoring(&data, &FitOptions::default()).unwrap().groups[0];
+        assert!(
+            alone.rmse > 100.0 * g.rmse,
+            "{} against {}",
+            alone.rmse,
+            g.rmse
+        );
+        // Without columns it is the plain fit, to the bit.
+        let plain = fit_restoring_beside(&data, &[], &FitOptions::default()).unwrap();
+        assert_eq!(plain.0.groups[0], alone);
+    }
+
+    #[test]
+    fn a_column_beside_the_loop_of_the_wrong_length_or_not_a_number_is_refused_by_name() {
+        let data = synth(&[0.0], false);
+        let short = vec![1.0; data.len() - 1];
+        assert_eq!(
+            fit_restoring_beside(&data, &[&short], &FitOptions::default()).unwrap_err(),
+            FitError::ColumnLength {
+                column: 0,
+                values: data.len() - 1,
+                samples: data.len()
+            }
+        );
+        let mut ones = vec![1.0; data.len()];
+        ones[3] = f64::NAN;
+        assert_eq!(
+            fit_restoring_beside(&data, &[&ones], &FitOptions::default()).unwrap_err(),
+            FitError::NonFinite { index: 3 }
+        );
     }
 
     #[test]

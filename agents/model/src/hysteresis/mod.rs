@@ -10,7 +10,8 @@ pub mod restoring;
 
 pub use bouc_wen::{BoucWen, BoucWenError, BoucWenParams};
 pub use fit::{
-    FitError, FitOptions, FitSample, GroupFit, RestoringFit, fit_restoring, replay_curve,
+    FitError, FitOptions, FitSample, GroupFit, RestoringFit, fit_restoring, fit_restoring_beside,
+    replay_curve,
 };
 pub use restoring::{
     AS5048A_COUNT_RAD, Envelope, RestoringCurve, RestoringParams, RestoringTorqueModel, Reversal,
