@@ -7,7 +7,8 @@ use super::signals::{self, dead_zone};
 use super::stats::{Bound, bounded_least_squares, combine, rmse};
 use super::{Declared, IdentifyError};
 use crate::hysteresis::{
-    FitOptions, FitSample, RestoringCurve, RestoringTorqueModel, fit_restoring,
+    FitOptions, FitSample, RestoringCurve, RestoringParams, RestoringTorqueModel, fit_restoring,
+    fit_restoring_beside,
 };
 use crate::lever::LeverVsa;
 
@@ -282,14 +283,16 @@ pub(crate) fn refit_restoring(
     fit_restoring_on(p, rows, &target, tr)
 }
 
-/// Fits the restoring-torque model on the fit rows, the inputs changed by `tr`.
-pub(crate) fn fit_restoring_on(
+/// The loop's samples on `rows`, the inputs changed by `tr`, the torque `target`; and each
+/// sample's row.
+fn loop_samples(
     p: &Problem,
     rows: &[usize],
     target: &[f64],
     tr: Transform,
-) -> Result<RestoringCurve, IdentifyError> {
+) -> (Vec<FitSample>, Vec<usize>) {
     let mut samples = Vec::with_capacity(rows.len());
+    let mut at = Vec::with_capacity(rows.len());
     let mut offset = 0;
     for r in &p.runs {
         let n = r.t.len();
@@ -307,23 +310,61 @@ pub(crate) fn fit_restoring_on(
                     tau: target[i],
                     d: d.as_ref().map_or(0.0, |d| d[k]),
                 });
+                at.push(i);
             }
         }
         offset += n;
     }
-    let fo = FitOptions {
+    (samples, at)
+}
+
+fn loop_options(p: &Problem, start: Option<RestoringParams>) -> FitOptions {
+    FitOptions {
         dead_band: p.dead_band,
         d_tolerance: 1e-4,
         envelope: p.envelope,
-        // A refit after a small change starts from the loop it replaces as well.
-        start: p
-            .restoring
-            .as_ref()
-            .map(|c| c.at(samples.first().map_or(0.0, |s| s.d))),
+        start,
         ..FitOptions::default()
-    };
-    fit_restoring(&samples, &fo)
+    }
+}
+
+/// Fits the restoring-torque model on the fit rows, the inputs changed by `tr`.
+pub(crate) fn fit_restoring_on(
+    p: &Problem,
+    rows: &[usize],
+    target: &[f64],
+    tr: Transform,
+) -> Result<RestoringCurve, IdentifyError> {
+    let (samples, _) = loop_samples(p, rows, target, tr);
+    // A refit after a small change starts from the loop it replaces as well.
+    let start = p
+        .restoring
+        .as_ref()
+        .map(|c| c.at(samples.first().map_or(0.0, |s| s.d)));
+    fit_restoring(&samples, &loop_options(p, start))
         .map(|f| f.curve)
+        .map_err(IdentifyError::Restoring)
+}
+
+/// Fits the loop afresh (from the grid's starts only, not from the loop it would replace)
+/// together with the coefficients of `columns` (each over every row) beside it: the loop of
+/// a torque offset's candidate. Fitted after the loop, an offset gains nothing: the loop has
+/// already held it (see [`fit_restoring_beside`]).
+pub(crate) fn fit_restoring_beside_on(
+    p: &Problem,
+    rows: &[usize],
+    target: &[f64],
+    tr: Transform,
+    columns: &[Vec<f64>],
+) -> Result<RestoringCurve, IdentifyError> {
+    let (samples, at) = loop_samples(p, rows, target, tr);
+    let cols: Vec<Vec<f64>> = columns
+        .iter()
+        .map(|c| at.iter().map(|&i| c[i]).collect())
+        .collect();
+    let refs: Vec<&[f64]> = cols.iter().map(Vec::as_slice).collect();
+    fit_restoring_beside(&samples, &refs, &loop_options(p, None))
+        .map(|(f, _)| f.curve)
         .map_err(IdentifyError::Restoring)
 }
 

@@ -189,6 +189,9 @@ pub struct Case {
     pub encoder_noise: f64,
     /// The angle encoder's counts per turn (0: the plant's, [`PlantParams`]).
     pub counts: f64,
+    /// The motion's swing [rad] (0: the plant's, [`PlantParams`]): paper B's lever softens
+    /// by 13 % at ±0.15 rad.
+    pub amplitude: f64,
     pub seed: u64,
 }
 
@@ -411,12 +414,21 @@ impl PlantParams {
             f_max: env_f64("F_MAX", if link { 1.5 } else { 1.0 }),
         }
     }
+
+    /// The plant's parameters with what the case sets itself.
+    pub fn for_case(c: &Case) -> Self {
+        let mut pp = Self::of(c.plant);
+        if c.amplitude > 0.0 {
+            pp.amplitude = c.amplitude;
+        }
+        pp
+    }
 }
 
 /// The rate viscous friction is sized at (b·rate = the effect's size): a 0.5 Hz swing of the
 /// plant's amplitude, its rms rate [rad/s].
-pub fn viscous_rate_scale(plant: Plant) -> f64 {
-    PlantParams::of(plant).amplitude * TAU * 0.5 / 2f64.sqrt()
+pub fn viscous_rate_scale(c: &Case) -> f64 {
+    PlantParams::for_case(c).amplitude * TAU * 0.5 / 2f64.sqrt()
 }
 
 /// Generates one run of a case. `variant` changes the motion's random draw (0 for the fit
@@ -424,7 +436,7 @@ pub fn viscous_rate_scale(plant: Plant) -> f64 {
 pub fn generate(c: &Case, variant: u64) -> Data {
     let mut rng = Rng::new(c.seed.wrapping_mul(7919).wrapping_add(variant * 104_729));
     let mut size_rng = Rng::new(c.seed.wrapping_mul(31337) ^ 0xA5A5);
-    let pp = PlantParams::of(c.plant);
+    let pp = PlantParams::for_case(c);
     let amplitude = pp.amplitude;
     let traj = Trajectory::new(c.motion, amplitude, pp.f_max, &mut rng);
     // The plant runs on a fine grid (10 kHz), sensors sample it at the case's rate.
@@ -468,7 +480,7 @@ pub fn generate(c: &Case, variant: u64) -> Data {
     let ripple_period = amplitude / size_rng.range(3.0, 6.0);
     let ripple_phase = size_rng.range(0.0, TAU);
     let q0 = size_rng.range(-0.5, 0.5);
-    let rate_rms = viscous_rate_scale(c.plant);
+    let rate_rms = viscous_rate_scale(c);
     let mut bw = BoucWen::new(pp.bw_yield * amplitude);
     let mut bw_prev_x = 0.0;
     // A lagging sensor reads, at the start of a run, the motion before it: the plant is run
