@@ -355,6 +355,26 @@ pub(crate) fn forward(
                             (q, v, cand) = (qa, va, c);
                         }
                     }
+                    // A step's instant again, from what that loop leaves: the instants tried
+                    // were read against the loop that held the offset, and the validation
+                    // blocks cannot place a jump inside a train block.
+                    if cand.shape.is_finite() {
+                        let s = q.signals(sig_transform(&q, &chosen));
+                        let e = fit(&s, &chosen, &q.tau, &rows.fit)
+                            .ok_or(IdentifyError::Solve)?
+                            .residual_on(&q.tau, &rows.fit);
+                        for c in split_times(&s, &rows.fit, &e, Place::Torque) {
+                            if c.same_shape(&cand) {
+                                continue;
+                            }
+                            progress();
+                            if let Ok((qa, va)) = offset_loop_afresh(p, &sig, &chosen, &c, rows)
+                                && va < v
+                            {
+                                (q, v, cand) = (qa, va, c);
+                            }
+                        }
+                    }
                 }
                 refitted = q;
                 (&refitted, v.min(val))
