@@ -273,14 +273,24 @@ pub(crate) fn refit_restoring(
     rows: &[usize],
 ) -> Result<RestoringCurve, IdentifyError> {
     let tr = Transform::of(chosen);
-    let s = p.signals(tr);
-    let f = fit(&s, chosen, &p.tau, rows).ok_or(IdentifyError::Solve)?;
+    let target = loop_target(p, &p.signals(tr), chosen, rows)?;
+    fit_restoring_on(p, rows, &target, tr)
+}
+
+/// What the loop is fitted to: the torque less the share of the `chosen` effects, their
+/// coefficients fitted on `rows` beside the current loop (in the signals `s`).
+pub(crate) fn loop_target(
+    p: &Problem,
+    s: &Signals,
+    chosen: &[Shaped],
+    rows: &[usize],
+) -> Result<Vec<f64>, IdentifyError> {
+    let f = fit(s, chosen, &p.tau, rows).ok_or(IdentifyError::Solve)?;
     let c0 = f.part(0).first().copied().unwrap_or(1.0);
     let base = s.base.first().map_or(&[][..], Vec::as_slice);
-    let target: Vec<f64> = (0..p.tau.len())
+    Ok((0..p.tau.len())
         .map(|i| p.tau[i] - (f.prediction[i] - c0 * base.get(i).copied().unwrap_or(0.0)))
-        .collect();
-    fit_restoring_on(p, rows, &target, tr)
+        .collect())
 }
 
 /// The loop's samples on `rows`, the inputs changed by `tr`, the torque `target`; and each

@@ -20,7 +20,8 @@
 
 use super::effects::{Effect, Place, Shaped};
 use super::model::{
-    Fitted, Signals, Transform, fit, fit_restoring_beside_on, fit_restoring_on, refit_restoring,
+    Fitted, Signals, Transform, fit, fit_restoring_beside_on, fit_restoring_on, loop_target,
+    refit_restoring,
 };
 use super::rows::{Problem, Role};
 use super::stats::{Bound, bounded_least_squares, combine};
@@ -851,12 +852,7 @@ fn offset_loop_afresh(
     let mut trial = chosen.to_vec();
     trial.push(*cand);
     // What the effects already chosen take, fitted beside the current loop.
-    let f = fit(sig, chosen, &p.tau, &rows.fit).ok_or(IdentifyError::Solve)?;
-    let scale = f.part(0).first().copied().unwrap_or(1.0);
-    let base = sig.base.first().map_or(&[][..], Vec::as_slice);
-    let target: Vec<f64> = (0..p.tau.len())
-        .map(|i| p.tau[i] - (f.prediction[i] - scale * base.get(i).copied().unwrap_or(0.0)))
-        .collect();
+    let target = loop_target(p, sig, chosen, &rows.fit)?;
     let columns: Vec<Vec<f64>> = cand.columns(sig).into_iter().map(|(c, _)| c).collect();
     let mut q = p.clone();
     q.restoring = Some(fit_restoring_beside_on(
