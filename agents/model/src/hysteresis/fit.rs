@@ -178,11 +178,17 @@ pub fn fit_restoring_beside(
     let mut groups = Vec::new();
     for ranges in group_runs(samples, opts.d_tolerance) {
         let runs: Vec<&[FitSample]> = ranges.iter().map(|r| &samples[r.clone()]).collect();
-        let cols: Vec<Vec<&[f64]>> = columns
+        // Each column over the group's samples, runs in order.
+        let cols: Vec<Vec<f64>> = columns
             .iter()
-            .map(|c| ranges.iter().map(|r| &c[r.clone()]).collect())
+            .map(|c| {
+                ranges
+                    .iter()
+                    .flat_map(|r| c[r.clone()].iter().copied())
+                    .collect()
+            })
             .collect();
-        groups.push(fit_group(&runs, &cols, opts)?);
+        groups.push(fit_group(&runs, cols, opts)?);
     }
     groups.sort_by(|a, b| a.0.d.total_cmp(&b.0.d));
     let table: Vec<(f64, RestoringParams)> = groups.iter().map(|g| (g.0.d, g.0.params)).collect();
@@ -217,11 +223,11 @@ fn group_runs(samples: &[FitSample], tol: f64) -> Vec<Vec<std::ops::Range<usize>
     groups.into_iter().map(|(_, g)| g).collect()
 }
 
-/// One group's fit; `cols` holds each column beside the loop, run by run. Returns the fit and
-/// the columns' coefficients.
+/// One group's fit; `flat` holds each column beside the loop over the group's samples (runs in
+/// order). Returns the fit and the columns' coefficients.
 fn fit_group(
     runs: &[&[FitSample]],
-    cols: &[Vec<&[f64]>],
+    flat: Vec<Vec<f64>>,
     opts: &FitOptions,
 ) -> Result<(GroupFit, Vec<f64>), FitError> {
     let all = || runs.iter().flat_map(|r| r.iter());
@@ -266,7 +272,6 @@ fn fit_group(
     };
     // With columns beside the loop they are in the linear start too (else the start's h takes
     // an offset's share on a motion that loads longer than it unloads).
-    let flat: Vec<Vec<f64>> = cols.iter().map(|c| c.concat()).collect();
     let mut c0 = vec![0.0; flat.len()];
     if !flat.is_empty()
         && let Some(x) = linear_start_beside(runs, &flat, opts)
@@ -291,8 +296,8 @@ fn fit_group(
         dead_band: opts.dead_band,
         envelope: opts.envelope,
         tau,
+        theta: DVector::zeros(4 + flat.len()),
         columns: flat,
-        theta: DVector::zeros(4 + cols.len()),
     };
     // The starts: a grid over n and where the transition meets the other line, and the loop
     // a refit replaces; Levenberg–Marquardt goes on from whichever replays closest.
@@ -314,7 +319,7 @@ fn fit_group(
             starts.push(theta);
         }
     }
-    let mut best = (f64::INFINITY, DVector::zeros(4 + cols.len()));
+    let mut best = (f64::INFINITY, DVector::zeros(4 + c0.len()));
     for theta in starts {
         problem.set_params(&theta);
         let sse = problem
