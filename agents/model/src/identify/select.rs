@@ -617,6 +617,25 @@ pub(crate) fn forward(
         if cand.effect == Effect::ViscousFriction {
             viscous_share = rate_noise_share;
         }
+        let mut cand = cand;
+        if p.model == Declared::Restoring
+            && cand.effect == Effect::Offset
+            && cand.on == Place::Torque
+            && cand.shape.is_finite()
+            && cand.size.is_nan()
+            && cands
+                .iter()
+                .any(|(_, g)| g.iter().any(|c| c.on == Place::Deflection))
+        {
+            let mut q = p.clone();
+            if curve.is_some() {
+                q.restoring = curve.clone();
+            }
+            progress();
+            if let Some(size) = slip_twin(&q, &chosen, &cand, rows) {
+                cand.size = size;
+            }
+        }
         chosen.push(cand);
         gains.push(gain);
         if curve.is_some() {
@@ -1065,25 +1084,49 @@ fn torque_twin(
     }
     let sig = qt.signals(sig_transform(&qt, chosen));
     qt.restoring = Some(profile_coefficient(&qt, &sig, chosen, &twin, &rows.fit).ok()?);
-    let on_fit = |q: &Problem, trial: &[Shaped]| -> Option<Vec<f64>> {
-        Some(
-            fit(
-                &q.signals(sig_transform(q, trial)),
-                trial,
-                &q.tau,
-                &rows.fit,
-            )?
-            .residual_on(&q.tau, &rows.fit),
-        )
-    };
     let mut with_slip = chosen.to_vec();
     with_slip.push(*slip);
-    let (fit_twin, fit_slip) = (on_fit(&qt, &trial)?, on_fit(q, &with_slip)?);
+    let (fit_twin, fit_slip) = (
+        residual_fitted_on(&qt, &trial, &rows.fit)?,
+        residual_fitted_on(q, &with_slip, &rows.fit)?,
+    );
     if clearly_better(q, &rows.fit, &fit_slip, &fit_twin, 0.0) {
         return None;
     }
     let v = validation_error(&qt, &trial, rows).ok()?;
     Some((qt, twin, v))
+}
+
+/// The encoder-slip twin of a torque step `step` named on the restoring model, `q` holding
+/// the step's loop: [`torque_twin`]'s rule the other way. The slip at the step's instant is
+/// settled from that loop; unless the step fits clearly better on the fit rows (the
+/// Diebold–Mariano test of [`clearly_better`]), the slip's correction δ is returned, which the
+/// report gives beside the step as the slip that fits as well. A step found by the torque's
+/// own search (its instant placed from the residual, its loop fitted afresh with it) can win
+/// over the slip path's twin, whose search settled at another instant; the lab is told the
+/// other sensor all the same.
+fn slip_twin(q: &Problem, chosen: &[Shaped], step: &Shaped, rows: &Rows) -> Option<f64> {
+    let slip = Shaped {
+        on: Place::Deflection,
+        size: f64::NAN,
+        ..*step
+    };
+    let (qs, slip, _) = settle_slip(q, chosen, &slip, rows, 5).ok()?;
+    let with = |c: &Shaped| [chosen, &[*c]].concat();
+    let (fit_step, fit_slip) = (
+        residual_fitted_on(q, &with(step), &rows.fit)?,
+        residual_fitted_on(&qs, &with(&slip), &rows.fit)?,
+    );
+    (slip.size.is_finite()
+        && slip.size != 0.0
+        && !clearly_better(q, &rows.fit, &fit_step, &fit_slip, 0.0))
+    .then_some(slip.size)
+}
+
+/// The residual on `rows` of `trial` fitted there beside `q`'s loop (its inputs changed as
+/// `trial` changes them).
+fn residual_fitted_on(q: &Problem, trial: &[Shaped], rows: &[usize]) -> Option<Vec<f64>> {
+    Some(fit(&q.signals(sig_transform(q, trial)), trial, &q.tau, rows)?.residual_on(&q.tau, rows))
 }
 
 /// The RMSE on `rows` of `trial` fitted there beside `q`'s loop, the inputs changed by `tr`.
