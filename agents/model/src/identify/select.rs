@@ -1345,7 +1345,32 @@ fn search(
             same = next;
         }
     }
-    best(&scored).map(|(c, e)| (c, e, tried))
+    let (b, e) = best(&scored)?;
+    // A jump's instant: the validation blocks cannot place it inside a train block (every
+    // instant there leaves the validation rows alike, and their noise decides), so among the
+    // instants tried it is placed by least squares on all the fit rows — the change point's
+    // own estimate; whether the jump pays is still judged on validation. Under a torque
+    // sensor's coloured noise (a 20 ms low-pass) a linear spring's step was placed 0.24 s
+    // early so and left 1.7× its clean twin's error held out.
+    if b.effect == Effect::Offset && b.shape.is_finite() {
+        let mut rows = [train, validate].concat();
+        rows.sort_unstable();
+        let rss_at = |c: &Shaped| -> f64 {
+            let trial = [chosen, &[*c]].concat();
+            fit(sig, &trial, &p.tau, &rows).map_or(f64::INFINITY, |f| f.error_on(&p.tau, &rows))
+        };
+        let placed = scored
+            .iter()
+            .filter(|(c, _)| c.effect == Effect::Offset && c.on == b.on && c.shape.is_finite())
+            .map(|&(c, e)| (c, e, rss_at(&c)))
+            .min_by(|x, y| x.2.total_cmp(&y.2));
+        if let Some((c, e, rss)) = placed
+            && rss.is_finite()
+        {
+            return Some((c, e, tried));
+        }
+    }
+    Some((b, e, tried))
 }
 
 /// Whether the declared spring still carries load between a stop's onsets: its coefficient
