@@ -192,6 +192,9 @@ pub struct Case {
     /// The motion's swing [rad] (0: the plant's, [`PlantParams`]): paper B's lever softens
     /// by 13 % at ±0.15 rad.
     pub amplitude: f64,
+    /// The torque noise's colour: the time constant [ms] of the sensor's own first-order
+    /// low-pass it passes, at the same rms (0: white; NOISE_TAU_MS sets it for stress runs).
+    pub noise_tau_ms: f64,
     pub seed: u64,
 }
 
@@ -204,6 +207,8 @@ pub struct Data {
     pub tau: Vec<f64>,
     /// The injected effect's main size (N·m, rad, s, fraction, by effect).
     pub size: f64,
+    /// When a torque step or an encoder slip happens [s] (NaN for the other effects).
+    pub jump_at_s: f64,
 }
 
 /// A run's length (s): 30, or DURATION_S for a stress run.
@@ -567,7 +572,26 @@ pub fn generate(c: &Case, variant: u64) -> Data {
         x: Vec::with_capacity(n),
         tau: Vec::with_capacity(n),
         size,
+        jump_at_s: match inject {
+            Some(Inject::TorqueStep | Inject::EncoderSlip) => t_jump,
+            _ => f64::NAN,
+        },
     };
+    // The torque sensor's noise coloured by its own first-order filter (a bridge amplifier's
+    // low-pass), at the same rms: the residual of a clean model is then autocorrelated
+    // however right the model.
+    let noise_tau = if c.noise_tau_ms > 0.0 {
+        c.noise_tau_ms
+    } else {
+        env_f64("NOISE_TAU_MS", 0.0)
+    } / 1e3;
+    let (pole, gain) = if noise_tau > 0.0 {
+        let a = (-1.0 / (c.rate_hz * noise_tau)).exp();
+        (a, (1.0 - a * a).sqrt())
+    } else {
+        (0.0, 1.0)
+    };
+    let mut coloured = 0.0;
     for i in 0..n {
         // A little jitter on the sampling instants, as a real bus has.
         let t = (i as f64 + 0.1 * rng.uniform()) / c.rate_hz;
@@ -585,7 +609,8 @@ pub fn generate(c: &Case, variant: u64) -> Data {
             Some(Inject::EncoderSlip) if t >= t_jump => x += size,
             _ => {}
         }
-        tau += env_f64("NOISE_SCALE", 1.0) * c.noise * peak * rng.gauss();
+        coloured = pole * coloured + gain * rng.gauss();
+        tau += env_f64("NOISE_SCALE", 1.0) * c.noise * peak * coloured;
         // The encoder's own noise, in counts, before it counts.
         let x_noise = if c.encoder_noise > 0.0 {
             c.encoder_noise
