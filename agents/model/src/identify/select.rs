@@ -617,6 +617,10 @@ pub(crate) fn forward(
         if cand.effect == Effect::ViscousFriction {
             viscous_share = rate_noise_share;
         }
+        if curve.is_some() {
+            p.restoring = curve;
+        }
+        // A torque step on the restoring model, beside its loop: the slip that fits as well.
         let mut cand = cand;
         if p.model == Declared::Restoring
             && cand.effect == Effect::Offset
@@ -627,20 +631,13 @@ pub(crate) fn forward(
                 .iter()
                 .any(|(_, g)| g.iter().any(|c| c.on == Place::Deflection))
         {
-            let mut q = p.clone();
-            if curve.is_some() {
-                q.restoring = curve.clone();
-            }
             progress();
-            if let Some(size) = slip_twin(&q, &chosen, &cand, rows) {
+            if let Some(size) = slip_twin(p, &chosen, &cand, rows) {
                 cand.size = size;
             }
         }
         chosen.push(cand);
         gains.push(gain);
-        if curve.is_some() {
-            p.restoring = curve;
-        }
         if p.model == Declared::Restoring {
             settle_restoring(p, &mut chosen, cands, rows, progress)?;
         }
