@@ -23,7 +23,9 @@ SHORT = {
         + ([f"jump {p['jump_nm']:+.2f} N·m at {p['jump_at_s']:.1f} s"] if "jump_nm" in p else [])
     )
     + ")",
-    "stiffness_drift": lambda p: f"stiffness_drift ({100 * p['stiffness_change_over_run']:+.1f} % over the run)",
+    "stiffness_drift": lambda p: f"stiffness_drift ({100 * p['stiffness_step']:+.1f} % at {p['step_at_s']:.1f} s)"
+    if "stiffness_step" in p
+    else f"stiffness_drift ({100 * p['stiffness_change_over_run']:+.1f} % over the run)",
     "periodic_ripple": lambda p: f"periodic_ripple ({p['amplitude_nm']:.2f} N·m per {p['period_rad'] * 1e3:.2f} mrad)",
     "geometric_stiffness": lambda p: "geometric_stiffness",
     "gravity": lambda p: "gravity",

@@ -92,7 +92,7 @@ impl Effect {
                 "a sensor zero: on the torque sensor (+ c, and + c₂ after t_j when a mount slips) or on the deflection encoder (a zero slip: τ̂(x − s) after t_j)"
             }
             Effect::StiffnessDrift => {
-                "the spring's stiffness changes over the run (temperature, creep): the declared model's elastic torque × (1 + c·t)"
+                "the spring's stiffness changes over the run (temperature, creep): the declared model's elastic torque × (1 + c·t); or at once part-way (a spring that re-seats in its clamp): × (1 + c·1[t ≥ t_j])"
             }
             Effect::Gravity => "gravity on the link: + m·g·l·sin(q + q₀)",
             Effect::PeriodicRipple => {
@@ -285,14 +285,18 @@ impl Shaped {
                 }
                 cols
             }
+            // The elastic torque × t over the run, or × 1[t ≥ t_j] for a step.
             Effect::StiffnessDrift => s
                 .elastic
                 .iter()
                 .map(|c| {
-                    (
-                        c.iter().zip(&s.t_rel).map(|(v, t)| v * t).collect(),
-                        Bound::Free,
-                    )
+                    let col = c.iter().zip(&s.t_rel);
+                    let col = if r.is_finite() {
+                        col.map(|(v, &t)| v * f64::from(t >= r)).collect()
+                    } else {
+                        col.map(|(v, t)| v * t).collect()
+                    };
+                    (col, Bound::Free)
                 })
                 .collect(),
             Effect::Gravity => match &s.q {
@@ -452,13 +456,15 @@ impl Shaped {
                     p
                 }
             },
-            Effect::StiffnessDrift => {
-                // (1 + c·t)·τ̂_elastic: the column's coefficient over the elastic one.
-                vec![
-                    ("stiffness_rate_per_s", c(0) / b0),
-                    ("stiffness_change_over_run", c(0) / b0 * s.duration),
-                ]
+            // (1 + c·t)·τ̂_elastic, or (1 + c·1[t ≥ t_j])·τ̂_elastic: the column's coefficient
+            // over the elastic one.
+            Effect::StiffnessDrift if self.shape.is_finite() => {
+                vec![("stiffness_step", c(0) / b0), ("step_at_s", self.shape)]
             }
+            Effect::StiffnessDrift => vec![
+                ("stiffness_rate_per_s", c(0) / b0),
+                ("stiffness_change_over_run", c(0) / b0 * s.duration),
+            ],
             Effect::Gravity => vec![
                 ("mgl_nm", c(0).hypot(c(1))),
                 ("angle_offset_rad", c(1).atan2(c(0))),

@@ -53,6 +53,9 @@ pub(crate) fn candidates(p: &Problem, opts: &Options, dt: f64, duration: f64) ->
     let each = |e: Effect, v: Vec<f64>| -> Vec<Shaped> {
         v.into_iter().map(|s| Shaped::new(e, s)).collect()
     };
+    // Where a jump part-way (an offset's, a stiffness step's) is first tried: every 1/24 of
+    // the run, refined between neighbours by the search.
+    let jump_times: Vec<f64> = (1..24).map(|i| duration * i as f64 / 24.0).collect();
     let mut not_applicable: Vec<(Effect, &'static str)> = Vec::new();
     let mut list: Vec<(Effect, Vec<Shaped>)> = Vec::new();
     for e in Effect::ALL {
@@ -69,6 +72,12 @@ pub(crate) fn candidates(p: &Problem, opts: &Options, dt: f64, duration: f64) ->
             }
             (Effect::GeometricStiffness, false) => Err("a joint-torque effect"),
             (Effect::StiffnessDrift, false) => Err("the link equation has no spring"),
+            // A drift over the run (NaN), or a step part-way at one of the jump instants (a
+            // spring that re-seats in its clamp).
+            (Effect::StiffnessDrift, true) => Ok(std::iter::once(f64::NAN)
+                .chain(jump_times.iter().copied())
+                .map(|t| Shaped::new(e, t))
+                .collect()),
             // A stop on each side, at its own fraction of how far the data goes that way
             // (a side the data hardly reaches has none).
             (Effect::HardStop, true) => {
@@ -120,7 +129,7 @@ pub(crate) fn candidates(p: &Problem, opts: &Options, dt: f64, duration: f64) ->
                 ))
             }
             (Effect::Offset, _) => {
-                let times: Vec<f64> = (1..24).map(|i| duration * i as f64 / 24.0).collect();
+                let times = &jump_times;
                 let mut g: Vec<Shaped> = times.iter().map(|&t| Shaped::new(e, t)).collect();
                 if opts.model != Declared::Linear {
                     g.push(Shaped::new(e, f64::NAN));
@@ -292,6 +301,11 @@ pub(crate) fn forward(
                 if on == Place::Torque || sig.slope.is_some() {
                     g.extend(split_times(&sig, &rows.fit, &e_fit, on));
                 }
+                g
+            } else if *e == Effect::StiffnessDrift {
+                let e_fit = all.residual_on(&p.tau, &rows.fit);
+                let mut g = grid.clone();
+                g.extend(stiffness_step_times(&sig, &rows.fit, &e_fit));
                 g
             } else {
                 grid.clone()
@@ -770,39 +784,68 @@ fn rank(p: &Problem, validate: &[usize], paying: Vec<Paying>, min_gain: f64) -> 
 /// Returns the three best, at least a second apart: a coarse grid of jump times misses a
 /// step by up to half its spacing, which the validation blocks then punish.
 fn split_times(s: &Signals, rows: &[usize], e: &[f64], on: Place) -> Vec<Shaped> {
-    let g = |i: usize| match (on, &s.slope) {
-        (Place::Deflection, Some(k)) => k[i],
-        _ => 1.0,
+    let (g, competes) = match (on, &s.slope) {
+        (Place::Deflection, Some(k)) => (k.as_slice(), false),
+        _ => (&[][..], true),
     };
+    jump_times_of((&s.t_rel, s.duration), rows, e, g, competes)
+        .into_iter()
+        .map(|t| Shaped {
+            on,
+            ..Shaped::new(Effect::Offset, t)
+        })
+        .collect()
+}
+
+/// The same for a stiffness step, the column 1[t ≥ t_j]·τ̂_elastic, which competes with the
+/// declared model's own elastic column.
+fn stiffness_step_times(s: &Signals, rows: &[usize], e: &[f64]) -> Vec<Shaped> {
+    let Some(g) = s.elastic.first() else {
+        return Vec::new();
+    };
+    jump_times_of((&s.t_rel, s.duration), rows, e, g, true)
+        .into_iter()
+        .map(|t| Shaped::new(Effect::StiffnessDrift, t))
+        .collect()
+}
+
+/// The three best jump times for the column 1[t ≥ t_j]·g (`g` indexed like the signals;
+/// empty: g = 1). Where the model holds g's own column (`competes`: the constant for a torque
+/// step, the elastic torque for a stiffness step), the step's column is taken with that
+/// column projected out: (Σ_{≥t_j} e·g − Σ e·g · G_{≥t_j}/G)² / (G_{≥t_j}·(1 − G_{≥t_j}/G)),
+/// G the sums of g². `t_rel` is each sample's time in its run, `duration` the run's length.
+fn jump_times_of(
+    (t_rel, duration): (&[f64], f64),
+    rows: &[usize],
+    e: &[f64],
+    g: &[f64],
+    competes: bool,
+) -> Vec<f64> {
+    let g = |i: usize| g.get(i).copied().unwrap_or(1.0);
     let mut order: Vec<usize> = (0..rows.len()).collect();
-    order.sort_by(|&a, &b| s.t_rel[rows[a]].total_cmp(&s.t_rel[rows[b]]));
+    order.sort_by(|&a, &b| t_rel[rows[a]].total_cmp(&t_rel[rows[b]]));
+    let total_eg: f64 = rows.iter().zip(e).map(|(&i, e)| e * g(i)).sum();
+    let total_gg: f64 = rows.iter().map(|&i| g(i) * g(i)).sum();
     // Suffix sums from the end of time.
     let (mut eg, mut gg) = (0.0, 0.0);
     let mut gains: Vec<(f64, f64)> = Vec::with_capacity(order.len());
-    let (total_e, total_n) = (e.iter().sum::<f64>(), e.len() as f64);
-    let mut n_after = 0.0;
+    let (mut n_after, n) = (0usize, rows.len());
     for &k in order.iter().rev() {
         let i = rows[k];
         eg += e[k] * g(i);
         gg += g(i) * g(i);
-        n_after += 1.0;
-        // With a constant in the model the step competes with it: centre by the mean.
-        let centred = eg
-            - if on == Place::Torque {
-                total_e * n_after / total_n
-            } else {
-                0.0
-            };
-        let denom = if on == Place::Torque {
-            gg * (1.0 - n_after / total_n)
+        n_after += 1;
+        let (centred, denom) = if competes {
+            let share = gg / total_gg;
+            (eg - total_eg * share, gg * (1.0 - share))
         } else {
-            gg
+            (eg, gg)
         };
         // A jump in a run's first or last 2 % is a constant offset (a candidate of its own,
         // with one parameter fewer), not a step.
-        let t = s.t_rel[i];
-        let inside = t > 0.02 * s.duration && t < 0.98 * s.duration;
-        if denom > 0.0 && n_after > 2.0 && n_after < total_n - 2.0 && inside {
+        let t = t_rel[i];
+        let inside = t > 0.02 * duration && t < 0.98 * duration;
+        if denom > 0.0 && n_after > 2 && n_after + 2 < n && inside {
             gains.push((t, centred * centred / denom));
         }
     }
@@ -816,12 +859,7 @@ fn split_times(s: &Signals, rows: &[usize], e: &[f64], on: Place) -> Vec<Shaped>
             break;
         }
     }
-    out.into_iter()
-        .map(|t| Shaped {
-            on,
-            ..Shaped::new(Effect::Offset, t)
-        })
-        .collect()
+    out
 }
 
 /// The restoring loop fitted to what a linear spring with the friction `cand` (and the chosen
@@ -1246,6 +1284,41 @@ fn search(
             .min_by(|x, y| x.1.total_cmp(&y.1))
             .map(|(c, e, _)| (c, e, tried.max(grid.len())));
     }
+    // A stiffness drift over the run and a step part-way are searched each in their family;
+    // the step — its instant one number more, searched over many — is named only where the
+    // criterion pays for that on all the fit rows ([`score`]: the drift's RSS against the
+    // step's, the residual's effective samples, one parameter and the instants tried). On a
+    // lever's ramp-and-hold at 2 % noise, where the spring is loaded on a few ramps only, a
+    // drift of 19 % over the run was named a step of 9 % half-way, validating a little better
+    // and 1.17× its clean twin's error held out. (The Diebold–Mariano test on the validation
+    // rows was too weak a judge: they cannot place a step inside a train block, and half the
+    // linear spring's real steps lost to a drift, up to 7.7× their floor.)
+    let drift = |c: &Shaped| c.effect == Effect::StiffnessDrift && c.shape.is_nan();
+    if grid.iter().any(drift) && grid.iter().any(|c| !drift(c)) {
+        let (over_run, steps): (Vec<Shaped>, Vec<Shaped>) = grid.iter().partition(|c| drift(c));
+        let a = search(p, sig, chosen, &over_run, train, validate, progress);
+        let b = search(p, sig, chosen, &steps, train, validate, progress);
+        let tried = a.map_or(0, |r| r.2) + b.map_or(0, |r| r.2);
+        let mut rows = [train, validate].concat();
+        rows.sort_unstable();
+        let on_fit_rows = |c: &Shaped| {
+            fit(sig, &[chosen, &[*c]].concat(), &p.tau, &rows).map(|f| rss_and_neff(p, &f, &rows))
+        };
+        let pick = match (a, b) {
+            (Some(a), Some(b)) => {
+                let step_pays = match (on_fit_rows(&a.0), on_fit_rows(&b.0)) {
+                    (Some((rss_a, n_eff)), Some((rss_b, _))) => {
+                        score(rss_a, rss_b, n_eff, 1, b.2) > 0.0
+                    }
+                    (None, Some(_)) => true,
+                    _ => false,
+                };
+                Some(if step_pays { b } else { a })
+            }
+            (a, b) => a.or(b),
+        };
+        return pick.map(|(c, e, _)| (c, e, tried.max(grid.len())));
+    }
     let trial_at = |cand: Shaped| -> Option<f64> {
         let mut trial = chosen.to_vec();
         trial.push(cand);
@@ -1360,7 +1433,10 @@ fn search(
     // own estimate; whether the jump pays is still judged on validation. Under a torque
     // sensor's coloured noise (a 20 ms low-pass) a linear spring's step was placed 0.24 s
     // early so and left 1.7× its clean twin's error held out.
-    if b.effect == Effect::Offset && b.shape.is_finite() {
+    let jump = |c: &Shaped| {
+        matches!(c.effect, Effect::Offset | Effect::StiffnessDrift) && c.shape.is_finite()
+    };
+    if jump(&b) {
         let mut rows = [train, validate].concat();
         rows.sort_unstable();
         let rss_at = |c: &Shaped| -> f64 {
@@ -1369,7 +1445,7 @@ fn search(
         };
         let placed = scored
             .iter()
-            .filter(|(c, _)| c.effect == Effect::Offset && c.on == b.on && c.shape.is_finite())
+            .filter(|(c, _)| c.effect == b.effect && c.on == b.on && jump(c))
             .map(|&(c, e)| (c, e, rss_at(&c)))
             .min_by(|x, y| x.2.total_cmp(&y.2));
         if let Some((c, e, rss)) = placed
@@ -1639,7 +1715,40 @@ pub(crate) fn with_heldout_veto(
 
 #[cfg(test)]
 mod tests {
-    use super::golden_section;
+    use super::{golden_section, jump_times_of};
+
+    #[test]
+    fn a_jump_is_placed_at_its_sample_with_the_models_own_column_projected_out() {
+        // 30 s at 100 Hz, x = sin(2π·0.3·t). The residual a model with the column g leaves
+        // of a step c·g·1[t ≥ 12.3 s]: the step less its projection on g. The best split is
+        // the step's own sample, for g = x (a stiffness step beside the spring's k·x) and for
+        // g = 1 (a torque step beside a constant).
+        let t: Vec<f64> = (0..3000).map(|i| i as f64 * 0.01).collect();
+        let x: Vec<f64> = t
+            .iter()
+            .map(|t| (std::f64::consts::TAU * 0.3 * t).sin())
+            .collect();
+        let rows: Vec<usize> = (0..t.len()).collect();
+        for g in [x.clone(), vec![1.0; t.len()]] {
+            let step: Vec<f64> = t
+                .iter()
+                .zip(&g)
+                .map(|(t, g)| g * f64::from(*t >= 12.3))
+                .collect();
+            let along = step.iter().zip(&g).map(|(s, g)| s * g).sum::<f64>()
+                / g.iter().map(|g| g * g).sum::<f64>();
+            let e: Vec<f64> = step
+                .iter()
+                .zip(&g)
+                .map(|(s, g)| 0.2 * (s - along * g))
+                .collect();
+            let times = jump_times_of((&t, 30.0), &rows, &e, &g, true);
+            assert!((times[0] - 12.3).abs() < 1e-9, "{times:?}");
+            // Three, a second apart or more.
+            assert_eq!(times.len(), 3);
+            assert!(times.windows(2).all(|w| (w[0] - w[1]).abs() > 1.0));
+        }
+    }
 
     #[test]
     fn golden_sections_find_a_parabolas_least_and_keep_the_start_where_nothing_beats_it() {

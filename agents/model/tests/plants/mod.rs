@@ -75,6 +75,8 @@ pub enum Inject {
     Hysteresis,
     /// The spring's stiffness grows by a fraction over the run.
     StiffnessDrift,
+    /// The spring's stiffness changes by a fraction at t_j (it re-seats in its clamp).
+    StiffnessStep,
     /// The torque path lags the angle path by δ.
     TorqueLag,
     /// The angle path lags the torque path by δ.
@@ -98,7 +100,7 @@ impl Inject {
             Inject::TorqueOffset | Inject::TorqueStep | Inject::EncoderSlip => "offset",
             Inject::Backlash => "backlash",
             Inject::Hysteresis => "hysteresis",
-            Inject::StiffnessDrift => "stiffness_drift",
+            Inject::StiffnessDrift | Inject::StiffnessStep => "stiffness_drift",
             Inject::TorqueLag | Inject::AngleLag => "sensor_delay",
             Inject::HardStop => "hard_stop",
             Inject::Coulomb => "coulomb_friction",
@@ -116,6 +118,7 @@ impl Inject {
             Inject::Backlash => "backlash",
             Inject::Hysteresis => "hysteresis",
             Inject::StiffnessDrift => "stiffness drift",
+            Inject::StiffnessStep => "stiffness step",
             Inject::TorqueLag => "torque lags",
             Inject::AngleLag => "angle lags",
             Inject::HardStop => "hard stop",
@@ -135,6 +138,7 @@ impl Inject {
                 Inject::Backlash,
                 Inject::Hysteresis,
                 Inject::StiffnessDrift,
+                Inject::StiffnessStep,
                 Inject::TorqueLag,
                 Inject::HardStop,
                 Inject::Coulomb,
@@ -147,6 +151,7 @@ impl Inject {
                 Inject::EncoderSlip,
                 Inject::Backlash,
                 Inject::StiffnessDrift,
+                Inject::StiffnessStep,
                 Inject::TorqueLag,
                 Inject::HardStop,
                 Inject::Viscous,
@@ -207,7 +212,8 @@ pub struct Data {
     pub tau: Vec<f64>,
     /// The injected effect's main size (N·m, rad, s, fraction, by effect).
     pub size: f64,
-    /// When a torque step or an encoder slip happens [s] (NaN for the other effects).
+    /// When a torque step, an encoder slip or a stiffness step happens [s] (NaN for the
+    /// other effects).
     pub jump_at_s: f64,
 }
 
@@ -473,6 +479,7 @@ pub fn generate(c: &Case, variant: u64) -> Data {
         Some(Inject::Backlash) => scale * size_rng.range(0.04, 0.08) * amplitude,
         Some(Inject::Hysteresis) => (scale * 0.3).min(0.9),
         Some(Inject::StiffnessDrift) => scale * size_rng.range(0.15, 0.3),
+        Some(Inject::StiffnessStep) => scale * size_rng.range(0.1, 0.25) * sign(&mut size_rng),
         Some(Inject::TorqueLag | Inject::AngleLag) => scale * size_rng.range(0.01, 0.03),
         Some(Inject::HardStop) => {
             (1.0 - scale * (1.0 - size_rng.range(0.6, 0.75))).max(0.1) * amplitude
@@ -531,6 +538,7 @@ pub fn generate(c: &Case, variant: u64) -> Data {
         };
         let tau = match inject {
             Some(Inject::StiffnessDrift) => tau * (1.0 + size * t / duration()),
+            Some(Inject::StiffnessStep) if t >= t_jump => tau * (1.0 + size),
             Some(Inject::HardStop) => {
                 tau + 4.0 * (peak / amplitude) * ((xs.abs() - size).max(0.0) * xs.signum())
             }
@@ -573,7 +581,7 @@ pub fn generate(c: &Case, variant: u64) -> Data {
         tau: Vec::with_capacity(n),
         size,
         jump_at_s: match inject {
-            Some(Inject::TorqueStep | Inject::EncoderSlip) => t_jump,
+            Some(Inject::TorqueStep | Inject::EncoderSlip | Inject::StiffnessStep) => t_jump,
             _ => f64::NAN,
         },
     };
