@@ -518,9 +518,10 @@ fn on_a_lever_that_softens_a_tare_of_micronewton_metres_leaves_the_declared_loop
 fn a_spring_that_reseats_part_way_is_named_a_stiffness_step_at_its_instant_not_a_drift() {
     // The spring's stiffness changes at once part-way. 1 kHz ramp-and-hold: a step placed
     // among the grid's instants refined between neighbours (12.890 s, 15 ms from where the
-    // residual points) left 1.27× the clean twin's error held out; 100 Hz multi-sine at 2 % noise: a drift over the run (+36 %) validated better
-    // than a step placed on the grid (1.56×). Its instant is now also where the residual
-    // points (the step's column with the spring's own projected out), placed on the fit rows.
+    // residual points) left 1.27× the clean twin's error held out; 100 Hz multi-sine at 2 %
+    // noise: a drift over the run (+36 %) validated better than a step placed on the grid
+    // (1.56×). Its instant is now also where the residual points (the step's column with the
+    // spring's own projected out), placed on the fit rows.
     for seed in [1, 6] {
         let c = cases(Plant::Linear, Some(Inject::StiffnessStep), seed..seed + 1)[0];
         let data = generate(&c, 0);

@@ -282,11 +282,12 @@ pub(crate) fn forward(
         let val0 = now.error_on(&p.tau, &rows.validate);
         let all = fit(&sig, &chosen, &p.tau, &rows.fit).ok_or(IdentifyError::Solve)?;
         let (rss0, _) = rss_and_neff(p, &all, &rows.fit);
+        let e_fit = all.residual_on(&p.tau, &rows.fit);
         // The current model's residual gives energy back (its loop against the angle runs
         // loading below unloading): no passive part does that, a lag of the torque path does.
         // Then a torque lag need only pay by the criterion, not also by `min_gain`.
         let backwards = p.model.is_joint()
-            && super::report::loop_area(p, &sig.x, &rows.fit, &all.residual_on(&p.tau, &rows.fit))
+            && super::report::loop_area(p, &sig.x, &rows.fit, &e_fit)
                 < -super::report::LOOP_BACKWARDS;
         let mut paying: Vec<Paying> = Vec::new();
         let mut per_effect = Vec::new();
@@ -295,7 +296,6 @@ pub(crate) fn forward(
                 continue;
             }
             let grid = if *e == Effect::Offset {
-                let e_fit = all.residual_on(&p.tau, &rows.fit);
                 let on = grid.first().map_or(Place::Torque, |c| c.on);
                 let mut g = grid.clone();
                 if on == Place::Torque || sig.slope.is_some() {
@@ -303,7 +303,6 @@ pub(crate) fn forward(
                 }
                 g
             } else if *e == Effect::StiffnessDrift {
-                let e_fit = all.residual_on(&p.tau, &rows.fit);
                 let mut g = grid.clone();
                 g.extend(stiffness_step_times(&sig, &rows.fit, &e_fit));
                 g
@@ -1299,8 +1298,7 @@ fn search(
         let a = search(p, sig, chosen, &over_run, train, validate, progress);
         let b = search(p, sig, chosen, &steps, train, validate, progress);
         let tried = a.map_or(0, |r| r.2) + b.map_or(0, |r| r.2);
-        let mut rows = [train, validate].concat();
-        rows.sort_unstable();
+        let rows = fit_rows(train, validate);
         let on_fit_rows = |c: &Shaped| {
             fit(sig, &[chosen, &[*c]].concat(), &p.tau, &rows).map(|f| rss_and_neff(p, &f, &rows))
         };
@@ -1440,8 +1438,7 @@ fn search(
         matches!(c.effect, Effect::Offset | Effect::StiffnessDrift) && c.shape.is_finite()
     };
     if jump(&b) {
-        let mut rows = [train, validate].concat();
-        rows.sort_unstable();
+        let rows = fit_rows(train, validate);
         let rss_at = |c: &Shaped| -> f64 {
             let trial = [chosen, &[*c]].concat();
             fit(sig, &trial, &p.tau, &rows).map_or(f64::INFINITY, |f| f.error_on(&p.tau, &rows))
@@ -1458,6 +1455,14 @@ fn search(
         }
     }
     Some((b, e, tried))
+}
+
+/// The fit rows, train ∪ validate in order: what `search`, handed the two, judges a jump's
+/// instant and a stiffness step against.
+fn fit_rows(train: &[usize], validate: &[usize]) -> Vec<usize> {
+    let mut rows = [train, validate].concat();
+    rows.sort_unstable();
+    rows
 }
 
 /// Whether the spring is loaded on either side of a stiffness step at `t_j` (NaN: a drift,
