@@ -75,10 +75,11 @@ pub struct Args {
     /// start where the rest puts them, and only what the loop cannot hold is a torque zero
     #[arg(long, conflicts_with = "no_tare")]
     rest_tare: bool,
-    /// Half-window of the centred local fits that give rates and accelerations [ms].
-    /// Default: 20 for the joint-torque models; for the link equation the narrowest of 10, 20,
-    /// 40, 80 that fits it within 5 % of the best on the validation blocks (narrow passes the
-    /// encoder's quantisation into q̈, wide flattens fast motion)
+    /// Half-window of the rates [ms]. Joint-torque models: the centred local quadratics'
+    /// (default 20). Link equation: the half-support of the one smoother that the torque, q̇,
+    /// q̈ and every effect's column all go through (the weak form: nothing is flattened, and
+    /// the RMSEs reported are of the smoothed torque); default the narrowest of 10–320 at
+    /// which the encoder's noise through I·q̈ is a tenth of the torque sensor's own
     #[arg(long, value_name = "MS")]
     rate_window_ms: Option<f64>,
     /// Where to write the JSON report (the .md and .png files go beside it)
@@ -563,6 +564,7 @@ fn report_json(
                 .map_or(f64::NAN, |p| p.1)
         };
         v["inertia"] = num(get("inertia_kgm2"));
+        v["weak_form"] = json!({"half_support_s": num(res.rate_window), "rmse_of": "the torque through the smoother"});
         v["damping"] = num(get("damping_nms_per_rad"));
     }
     v
@@ -597,6 +599,14 @@ fn sig(v: f64) -> String {
     }
 }
 
+/// What the link equation's RMSEs are of (the weak form).
+fn weak_form_line(res: &Identified) -> String {
+    format!(
+        "link equation in weak form: the torque, q̇, q̈ and every effect through one smoother of half-support {} ms; the RMSEs are of the smoothed torque",
+        sig(res.rate_window * 1e3)
+    )
+}
+
 fn print_summary(res: &Identified, notes: &[String]) {
     println!(
         "model {}: held-out RMSE {} → {} N·m, MAE {} → {} N·m ({} fit, {} held-out samples)",
@@ -608,6 +618,9 @@ fn print_summary(res: &Identified, notes: &[String]) {
         res.fit_samples,
         res.holdout_samples
     );
+    if res.model == Declared::Link {
+        println!("  {}", weak_form_line(res));
+    }
     for t in &res.tare {
         println!(
             "  tare: {} at rest for {:.1} s from {:.2} s: torque zero {} N·m, deflection zero {} rad ({})",
@@ -677,6 +690,9 @@ fn markdown(
                 .join(", ")
         }
     ));
+    if res.model == Declared::Link {
+        s.push_str(&format!("{}.\n\n", weak_form_line(res)));
+    }
     s.push_str("| held-out | RMSE [N·m] | MAE [N·m] |\n|---|---|---|\n");
     s.push_str(&format!(
         "| before | {} | {} |\n| after | {} | {} |\n\n",

@@ -201,6 +201,15 @@ impl Shaped {
     /// Feature columns with the sign each coefficient must keep (input effects add none:
     /// they change the signals).
     pub(crate) fn columns(&self, s: &Signals) -> Vec<(Vec<f64>, Bound)> {
+        let cols = self.raw_columns(s);
+        if s.weak.is_none() {
+            return cols;
+        }
+        cols.into_iter().map(|(c, b)| (s.smoothed(c), b)).collect()
+    }
+
+    /// [`Self::columns`] before the weak form's smoother.
+    fn raw_columns(&self, s: &Signals) -> Vec<(Vec<f64>, Bound)> {
         let xs = &s.xs;
         let r = self.shape;
         let step = |tj: f64| -> Vec<f64> { s.t_rel.iter().map(|&t| f64::from(t >= tj)).collect() };

@@ -110,12 +110,11 @@ pub struct Options {
     pub max_effects: usize,
     /// Largest sensor delay searched, either way [s].
     pub max_delay: f64,
-    /// Half-window of the local fits giving rates [s]; `None`: the narrowest of 10, 20, 40 and
-    /// 80 ms whose fit of the declared model (with the shape-free candidates) is within 5 % of
-    /// the best on the validation blocks, and where 80 ms is still the best, of 80, 160 and
-    /// 320 ms with a lag searched at each (a narrow window passes the encoder's quantisation
-    /// and noise into q̈, a wide one flattens fast motion; the joint models' torque does not
-    /// depend on rates, so for them it stays at 20 ms).
+    /// Half-window of the rates [s]: for the joint models the local quadratics' (`None`:
+    /// 20 ms; their torque does not depend on rates); for the link equation the half-support
+    /// of the weak form's smoother (`None`: the narrowest of 10–320 ms at which the
+    /// encoder's noise through I·q̈ is a tenth of the torque sensor's; see
+    /// [`rows::Problem::weak`]).
     pub rate_window: Option<f64>,
     /// Take each run's torque and deflection zeros from the rest it starts with (joint-torque
     /// models; the link equation's torque at rest is gravity's, so it is never tared).

@@ -98,9 +98,22 @@ pub struct Signals {
     /// Each run's hysteresis start state, a fraction of each stop's half-width, when the rests
     /// set it (see [`super::states`]); `None`: the hysteresis candidate's shape, for every run.
     pub(crate) states: Option<Vec<f64>>,
+    /// The weak form (the link equation): the smoother's half-support [s] and each run's
+    /// sampling step [s]; every effect's column is smoothed as the torque was.
+    pub(crate) weak: Option<(f64, Vec<f64>)>,
 }
 
 impl Signals {
+    /// `col` through the weak form's smoother, run by run (unchanged without the weak form).
+    pub(crate) fn smoothed(&self, col: Vec<f64>) -> Vec<f64> {
+        match &self.weak {
+            None => col,
+            Some((h, dts)) => {
+                self.per_run_k(|k, a, b| signals::weak_smooth(&col[a..b], *h, dts[k]))
+            }
+        }
+    }
+
     /// A column built run by run (stateful operators restart at each run).
     pub(crate) fn per_run(&self, f: impl Fn(usize, usize) -> Vec<f64>) -> Vec<f64> {
         self.per_run_k(|_, a, b| f(a, b))
@@ -141,6 +154,7 @@ impl Problem {
             elastic: vec![],
             bounds: self.bounds.clone(),
             states: self.states.clone(),
+            weak: self.weak.then(|| (self.rate_window, self.run_steps())),
         };
         let mut q_all = Vec::new();
         for (k, r) in self.runs.iter().enumerate() {
@@ -152,7 +166,11 @@ impl Problem {
                 signals::shifted(&r.t, &self.rates[k].0, tr.delay),
                 signals::shifted(&r.t, &self.rates[k].1, tr.delay),
             );
-            s.dir.extend(signals::rate_sign(&v, self.still()));
+            let v_sign = match self.sign_rates.get(k) {
+                Some(v) if self.weak => signals::shifted(&r.t, v, tr.delay),
+                _ => v.clone(),
+            };
+            s.dir.extend(signals::rate_sign(&v_sign, self.still()));
             let d =
                 r.d.as_ref()
                     .map_or(vec![0.0; n], |d| signals::shifted(&r.t, d, tr.delay));

@@ -11,6 +11,10 @@ pub(crate) enum Role {
     Train,
     Validate,
     Holdout,
+    /// In the weak form, the samples within the widest smoother's half-support of a run's
+    /// ends: their smoothed sums are short and their rates one-sided, so their noise is
+    /// several times the rest's. They take no part.
+    Edge,
 }
 
 /// A run's tare: its torque and deflection zeros, the means over the rest it starts with
@@ -213,6 +217,22 @@ pub(crate) struct Problem {
     pub rate_window: f64,
     /// Rate and acceleration of each run's angle (set with the window).
     pub rates: Vec<(Vec<f64>, Vec<f64>)>,
+    /// The link equation in weak form (its `tau` is then the smoothed torque). The equation
+    /// τ = I·q̈ + N·q̇ + Σ effects holds of any one linear smoother S applied to every term
+    /// alike, S[τ] = I·S[q̈] + N·S[q̇] + Σ S[effect], with the same coefficients. So the torque,
+    /// the rates and every effect's column go through one smoother of half-support
+    /// `rate_window` ([`signals::weak_smooth`]), and q̈ is taken from only seven samples
+    /// before it: nothing is flattened (a local quartic over ±80 ms took a 4 Hz motion's q̈
+    /// 2 % short, which left 4× the torque noise and brought `gravity` on clean data), while
+    /// the counts' noise in q̈ is averaged away as far as the smoother reaches (a lag's jerk
+    /// term δ·I·q⃛ then stands above it on slow ramps). The report's RMSEs are of the
+    /// smoothed torque.
+    pub weak: bool,
+    /// In the weak form, how far from each run's ends samples take no part [s].
+    pub edge: f64,
+    /// In the weak form, each run's q̇ for the direction of motion: a local quadratic over
+    /// ±[`WEAK_SIGN_WINDOW`] (the smoothed q̇ turns a wide smoother's half-support early).
+    pub sign_rates: Vec<Vec<f64>>,
     pub restoring: Option<RestoringCurve>,
     /// Half-widths of hysteresis's stop operators [rad].
     pub widths: Vec<f64>,
@@ -258,6 +278,24 @@ impl Problem {
             bounds.push((start, tau.len()));
             runs.push(r.clone());
         }
+        // The link equation in weak form: each run's ends take no part, as far as the widest
+        // smoother reaches (a tenth of the shortest run at most).
+        let weak = opts.model == Declared::Link;
+        let edge = runs
+            .iter()
+            .map(|r: &Run| 0.1 * (r.t[r.t.len() - 1] - r.t[0]))
+            .fold(WEAK_EDGE, f64::min);
+        if weak {
+            for (k, &(a, _)) in bounds.iter().enumerate() {
+                let t = &runs[k].t;
+                let (t0, t1) = (t[0], t[t.len() - 1]);
+                for (j, &tj) in t.iter().enumerate() {
+                    if tj - t0 < edge || t1 - tj < edge {
+                        role[a + j] = Role::Edge;
+                    }
+                }
+            }
+        }
         let joint = opts.model.is_joint();
         let angle_of = |r: &Run| -> Vec<f64> {
             if joint { r.phi.clone() } else { r.q.clone() }.unwrap_or_default()
@@ -292,6 +330,9 @@ impl Problem {
             smoothing: vec![],
             rate_window: 0.0,
             rates: vec![],
+            sign_rates: vec![],
+            weak,
+            edge: if weak { edge } else { 0.0 },
             restoring: None,
             widths: vec![],
             fit_runs: fit.len(),
@@ -312,21 +353,39 @@ impl Problem {
         p
     }
 
-    /// Sets the half-window of the rates and computes them, run by run: local quadratics for
-    /// the joint models (their rates only feed friction and lags), local quartics for the link
-    /// equation, whose inertia term takes q̈ as it is (a quadratic flattens it: 5 % more
-    /// inertia at 9 Hz with ±20 ms).
+    /// Sets the half-window of the rates and computes them, run by run: local quadratics over
+    /// ±`w` for the joint models (their rates only feed friction and lags); for the link
+    /// equation, the weak form with a smoother of half-support `w` (see [`Problem::weak`]):
+    /// the torque smoothed, q̇ and q̈ the smoothed rates of local quartics through seven
+    /// samples, and the direction of motion from a local quadratic over ±20 ms.
     pub fn set_rate_window(&mut self, w: f64) {
-        let joint = self.model.is_joint();
         self.rate_window = w;
+        if self.weak {
+            let dts = self.run_steps();
+            let q_of = |r: &Run| r.q.clone().unwrap_or_default();
+            self.rates = self
+                .runs
+                .iter()
+                .zip(&dts)
+                .map(|(r, &dt)| signals::weak_rates(&r.t, &q_of(r), w, dt))
+                .collect();
+            self.tau = self
+                .runs
+                .iter()
+                .zip(&dts)
+                .flat_map(|(r, &dt)| signals::weak_smooth(&r.tau, w, dt))
+                .collect();
+            self.sign_rates = self
+                .runs
+                .iter()
+                .map(|r| signals::local_rates(&r.t, &q_of(r), WEAK_SIGN_WINDOW).0)
+                .collect();
+            return;
+        }
         self.rates = self
             .runs
             .iter()
-            .map(|r| {
-                let x = if joint { r.phi.as_ref() } else { r.q.as_ref() };
-                let degree = if joint { 2 } else { 4 };
-                signals::local_rates_of_degree(&r.t, x.map_or(&[][..], Vec::as_slice), w, degree)
-            })
+            .map(|r| signals::local_rates(&r.t, r.phi.as_deref().unwrap_or(&[]), w))
             .collect();
     }
 
@@ -377,6 +436,15 @@ impl Problem {
         self.smoothing.iter().any(|h| *h > 0.0)
     }
 
+    /// The half-window of the rate whose sign is the direction of motion [s].
+    fn sign_window(&self) -> f64 {
+        if self.weak {
+            WEAK_SIGN_WINDOW
+        } else {
+            self.rate_window
+        }
+    }
+
     /// The angle's white noise as measured, rms [rad]: the noisiest run's.
     pub fn angle_noise(&self) -> f64 {
         self.noise.iter().copied().fold(0.0, f64::max)
@@ -386,14 +454,14 @@ impl Problem {
     /// the rate window, or three times the rate's own noise where that is larger (a noisy
     /// encoder: a sign taken inside the noise puts the whole friction on the wrong side).
     pub fn still(&self) -> f64 {
-        (0.5 * self.resolution / self.rate_window).max(3.0 * self.rate_noise())
+        (0.5 * self.resolution / self.sign_window()).max(3.0 * self.rate_noise())
     }
 
     /// The rms noise of a rate from the angle's white noise [rad/s]: a local fit's slope over
     /// samples at t_j has variance σ² / Σ (t_j − t)² (uniform steps, at least two samples
     /// each side).
     pub fn rate_noise(&self) -> f64 {
-        let h = self.rate_window;
+        let h = self.sign_window();
         let dt = self.step.max(1e-12);
         let m = (h / dt).floor().max(2.0);
         let sum_sq = dt * dt * m * (m + 1.0) * (2.0 * m + 1.0) / 3.0;
@@ -538,6 +606,24 @@ pub(crate) fn longest_run(runs: &[Run]) -> f64 {
     runs.iter()
         .map(|r| r.t[r.t.len() - 1] - r.t[0])
         .fold(0.0f64, f64::max)
+}
+
+/// The weak form's widest smoother's half-support [s]: the samples this near a run's ends
+/// take no part ([`Role::Edge`]; a tenth of the shortest run at most).
+pub const WEAK_EDGE: f64 = 0.32;
+
+/// The half-window of the local quadratic giving the weak form's direction of motion [s]
+/// (the smoothed q̇ turns a wide smoother's half-support early).
+pub const WEAK_SIGN_WINDOW: f64 = 0.02;
+
+impl Problem {
+    /// Each run's median sampling step [s].
+    pub fn run_steps(&self) -> Vec<f64> {
+        self.runs
+            .iter()
+            .map(|r| signals::median_step(&r.t))
+            .collect()
+    }
 }
 
 /// The median sampling step over the runs [s] (the smallest run's).

@@ -26,7 +26,7 @@ use super::model::{
 use super::rows::{Problem, Role};
 use super::stats::{Bound, bounded_least_squares, combine};
 use super::stats::{effective_samples, mean, rmse, std};
-use super::{Declared, IdentifyError, Options, logspace};
+use super::{Declared, IdentifyError, Options, logspace, signals};
 use crate::hysteresis::{Envelope, RestoringCurve};
 
 /// The candidates with their grids of shapes, and those not applicable with why.
@@ -1524,127 +1524,77 @@ fn loaded_between_stops(
 }
 
 /// The half-window of the rates (see [`Options::rate_window`]): given, 20 ms for the joint
-/// models, or for the link equation the narrowest of 10, 20, 40, 80 ms (and, where 80 ms is
-/// still the best of those, of 80, 160, 320 ms each with a lag free) whose fit of the
-/// declared model, with every shape-free candidate present (an offset, friction, gravity, so
-/// that an effect the model lacks does not decide how rates are taken), is within 5 % of the
-/// best on the validation blocks. The link's rates are local quartics (see
-/// [`Problem::set_rate_window`]). A narrow window passes the encoder's quantisation into q̈ and
-/// a wide one flattens fast motion; either misfit leaves a residual that a lag of one sensor
-/// imitates (q̇(t + δ) ≈ q̇ + δ·q̈): with local quadratics and the narrowest window within 30 %
-/// of the best, a lag came as a companion of an offset, friction or gravity on 6 of 40
-/// independent cases and on one clean one.
+/// models (their torque does not depend on rates), or for the link equation the weak form's
+/// smoother ([`weak_window`]).
 pub(crate) fn rate_window(
     raw: &mut Problem,
     rows: &Rows,
     opts: &Options,
 ) -> Result<f64, IdentifyError> {
-    let w = rate_window_knowing(raw, rows, opts, &[])?;
-    if opts.rate_window.is_some() || opts.model != Declared::Link {
-        return Ok(w);
-    }
-    // An effect with a shape the nuisance columns lack (a torque step, above all) leaves a
-    // residual that no window fits, and the window chosen against it can smear q̈ until the
-    // inertia fits as nothing and a lag stands in for it (N·δ·q̈). What a first selection finds
-    // is known for a second choice, a lag too, at the delay it found: a lag left out, every
-    // window missed by as much, and the narrowest tied (an angle lag on a 500 Hz multi-sine
-    // took ±40 ms and was left at 2× its clean twin's error, at ±80 ms it reaches it).
-    raw.set_rate_window(w);
-    let (cands, _) = candidates(raw, opts, raw.step, super::rows::longest_run(&raw.runs));
-    let known: Vec<Shaped> = forward(&mut raw.clone(), &cands, rows, opts, &mut || {})?.chosen;
-    if known.is_empty() {
-        return Ok(w);
-    }
-    rate_window_knowing(raw, rows, opts, &known)
-}
-
-/// The half-windows of the link equation's rates tried first [s].
-const NARROW_WINDOWS: [f64; 4] = [0.01, 0.02, 0.04, 0.08];
-
-/// Then, where the widest of those was still the best, these [s]: up to a third of a second,
-/// which a slow ramp's q̈ (its changes over ~1 s) outlasts and which an encoder's noise of a
-/// few counts at 100 Hz needs before q̈ is more signal than noise.
-const WIDE_WINDOWS: [f64; 3] = [0.08, 0.16, 0.32];
-
-/// [`rate_window`]'s choice with the effects `known` among the nuisance columns (a known lag
-/// shifts the rates at every window).
-fn rate_window_knowing(
-    raw: &mut Problem,
-    rows: &Rows,
-    opts: &Options,
-    known: &[Shaped],
-) -> Result<f64, IdentifyError> {
     match opts.rate_window {
         Some(w) => Ok(w),
-        None if opts.model == Declared::Link => {
-            let cands = candidates(raw, opts, raw.step, 1.0).0;
-            let mut nuisance: Vec<Shaped> = cands
-                .iter()
-                .flat_map(|(_, g)| g.iter().filter(|c| c.shape.is_nan()).copied())
-                .filter(|c| known.iter().all(|k| k.effect != c.effect))
-                .collect();
-            nuisance.extend_from_slice(known);
-            let lags: Vec<Shaped> = cands
-                .iter()
-                .filter(|(e, _)| *e == Effect::SensorDelay && known.iter().all(|k| k.effect != *e))
-                .flat_map(|(_, g)| g.iter().copied())
-                .collect();
-            // Each window's validation error with the nuisance columns, and (`lag`) the least
-            // of that and of the same with a lag of either sensor searched.
-            let mut error_at = |w: f64, lag: bool| -> Result<f64, IdentifyError> {
-                raw.set_rate_window(w);
-                let sig = raw.signals(sig_transform(raw, known));
-                let without = fit(&sig, &nuisance, &raw.tau, &rows.train)
-                    .ok_or(IdentifyError::Solve)?
-                    .error_on(&raw.tau, &rows.validate);
-                if !lag {
-                    return Ok(without);
-                }
-                let with_lag = search(
-                    raw,
-                    &sig,
-                    &nuisance,
-                    &lags,
-                    &rows.train,
-                    &rows.validate,
-                    &mut || {},
-                )
-                .map_or(f64::INFINITY, |(_, e, _)| e);
-                Ok(without.min(with_lag))
-            };
-            // Within 5 % of the best is a tie; the narrowest of those smears friction's
-            // reversals least. (Two standard errors over the residual's effective samples
-            // instead tied windows 10–30 % apart where a step or a lag the model lacks makes
-            // the residual slow, and a lag came back as a companion on 8 of 40 cases.)
-            let narrowest_tied = |scored: &[(f64, f64)]| -> Option<f64> {
-                let best = scored.iter().map(|s| s.1).fold(f64::INFINITY, f64::min);
-                scored.iter().find(|s| s.1 <= 1.05 * best).map(|s| s.0)
-            };
-            let mut scored = Vec::new();
-            for w in NARROW_WINDOWS {
-                scored.push((w, error_at(w, false)?));
-            }
-            let w = narrowest_tied(&scored).unwrap_or(0.02);
-            if w < NARROW_WINDOWS[NARROW_WINDOWS.len() - 1] {
-                return Ok(w);
-            }
-            // The widest of them and still no tie with a narrower one: q̈ may be more noise
-            // than signal (an encoder's noise of a few counts), and wider windows are tried,
-            // each with a lag of either sensor searched too. A lag free at every window keeps
-            // the window's choice on noise and flattening alone: a wide window flattens q̈ by a
-            // law of the frequency that can stand in for a lag (an angle lag on a multi-sine
-            // at 1 kHz validated 7× better at ±320 ms than at ±80 ms without one). The
-            // narrower windows are not tried with a lag: there a lag of q̇ stands in for a q̈
-            // that the window left noisy (δ·N·q̈ for the inertia; a clean ramp-and-hold at
-            // 200 Hz tied ±10 ms and a −99 ms lag with ±80 ms).
-            let mut wide = Vec::new();
-            for w in WIDE_WINDOWS {
-                wide.push((w, error_at(w, true)?));
-            }
-            Ok(narrowest_tied(&wide).unwrap_or(w))
-        }
+        None if raw.weak => weak_window(raw, rows, opts),
         None => Ok(0.02),
     }
+}
+
+/// The weak form's half-supports tried [s].
+const WEAK_WINDOWS: [f64; 6] = [0.01, 0.02, 0.04, 0.08, 0.16, 0.32];
+
+/// The largest share of the torque sensor's own noise (variance, through the same smoother)
+/// that the counts' noise may reach through I·q̈ at the weak form's chosen smoother.
+const WEAK_NOISE_SHARE: f64 = 0.1;
+
+/// The link equation's smoother in the weak form ([`Problem::weak`]): the narrowest
+/// half-support at which the noise the encoder puts into the fit through I·q̈ is at most a
+/// tenth of the torque sensor's own white noise through the same smoother (variances; both
+/// from the impulse responses, [`signals::weak_noise_gains`], with the angle's noise as
+/// measured or its quantisation's, whichever is larger, and I from a first fit at the widest
+/// beside the shape-free candidates).
+/// No width flattens anything, the torque being smoothed alike: a wider one only averages
+/// more noise away and keeps less of what is fast (a ripple at speed, a reversal, the instant
+/// of a step), so the narrowest quiet one is taken. Widths beyond the runs' unused ends
+/// ([`Problem::edge`]) are not tried.
+fn weak_window(raw: &mut Problem, rows: &Rows, opts: &Options) -> Result<f64, IdentifyError> {
+    let tried: Vec<f64> = WEAK_WINDOWS
+        .iter()
+        .copied()
+        .filter(|&h| h <= raw.edge + 1e-12)
+        .collect();
+    let Some(&widest) = tried.last() else {
+        return Ok(raw.edge.max(raw.step));
+    };
+    raw.set_rate_window(widest);
+    // I beside every shape-free candidate (an offset, friction, gravity), so that an effect
+    // the model lacks does not decide the smoother.
+    let nuisance: Vec<Shaped> = candidates(raw, opts, raw.step, 1.0)
+        .0
+        .iter()
+        .flat_map(|(_, g)| g.iter().filter(|c| c.shape.is_nan()).copied())
+        .collect();
+    let f = fit(
+        &raw.signals(Transform::default()),
+        &nuisance,
+        &raw.tau,
+        &rows.train,
+    )
+    .ok_or(IdentifyError::Solve)?;
+    let inertia = f.part(0)[0].abs();
+    let angle_noise = raw.angle_noise().max(raw.resolution / 12f64.sqrt());
+    let torque_noise = raw
+        .runs
+        .iter()
+        .map(|r| signals::white_noise_rms(&r.tau))
+        .fold(0.0, f64::max);
+    Ok(tried
+        .iter()
+        .copied()
+        .find(|&h| {
+            let (g_tau, _, g_acc) = signals::weak_noise_gains(h, raw.step);
+            (inertia * angle_noise * g_acc).powi(2)
+                <= WEAK_NOISE_SHARE * (torque_noise * g_tau).powi(2)
+        })
+        .unwrap_or(widest))
 }
 
 /// The smallest gain of the held-out fit an effect must bring: the likelihood ratio on the

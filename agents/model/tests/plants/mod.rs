@@ -200,6 +200,8 @@ pub struct Case {
     /// The torque noise's colour: the time constant [ms] of the sensor's own first-order
     /// low-pass it passes, at the same rms (0: white; NOISE_TAU_MS sets it for stress runs).
     pub noise_tau_ms: f64,
+    /// The multi-sine's highest frequency [Hz] (0: the plant's, [`PlantParams`]).
+    pub f_max: f64,
     pub seed: u64,
 }
 
@@ -431,6 +433,9 @@ impl PlantParams {
         let mut pp = Self::of(c.plant);
         if c.amplitude > 0.0 {
             pp.amplitude = c.amplitude;
+        }
+        if c.f_max > 0.0 {
+            pp.f_max = c.f_max;
         }
         pp
     }
