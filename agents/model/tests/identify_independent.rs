@@ -289,6 +289,29 @@ fn on_the_link_equation_a_fast_motion_is_not_flattened_into_gravity_nor_a_lag_le
 }
 
 #[test]
+fn on_the_link_equation_a_smoothed_residual_is_called_white_unless_something_is_left_in_it() {
+    // In the weak form the residual is the smoothed torque's: noise alone has the smoother's
+    // autocorrelation, which the whiteness test expects (it called every clean link residual
+    // "not white: autocorrelation 1.00 at 1 ms"). A stop the link equation has no candidate
+    // for is still found not white.
+    for seed in [1, 2] {
+        let c = case(Plant::Link, None, seed, 500.0, 0.005);
+        let r = identify_case(&c);
+        assert!(
+            r.residual.white,
+            "{c:?}: clean, yet {:?}",
+            r.residual.structure
+        );
+    }
+    let c = case(Plant::Link, Some(Inject::HardStop), 2, 500.0, 0.005);
+    let r = identify_case(&c);
+    assert!(
+        !r.residual.white,
+        "{c:?}: a stop left in the residual, called white"
+    );
+}
+
+#[test]
 fn an_encoders_noise_is_averaged_out_before_the_joint_models_see_it() {
     // Two counts rms of encoder noise (the measured springs' encoder carries one to three).
     // Read raw, every small retreat of the noise reversed the loop, and a lag "gained" by

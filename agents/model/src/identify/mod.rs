@@ -207,10 +207,13 @@ pub struct Correlation {
 #[derive(Debug, Clone, PartialEq)]
 pub struct Residual {
     pub white: bool,
+    /// The largest |autocorrelation| of the held-out residual over the lags (in the weak form,
+    /// how far it is off the smoother's own, which noise alone shows).
     pub max_autocorr: f64,
     /// Its lag [s].
     pub max_autocorr_lag_s: f64,
-    /// The band |ρ| must stay within (Bonferroni over the lags, 5 %).
+    /// The band |ρ| must stay within (Bonferroni over the lags, 5 %; in the weak form widened
+    /// by the smoother, Bartlett's Σ ρ_S²).
     pub band: f64,
     pub lags: usize,
     pub autocorr: Vec<f64>,

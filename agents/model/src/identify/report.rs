@@ -114,13 +114,28 @@ pub(crate) fn diagnose(
     }
     let n: usize = seg_e.iter().map(|s| s.len()).sum();
     let lags = 50usize;
+    // What noise alone shows: nothing at any lag, or in the weak form (the link equation) the
+    // smoother's own autocorrelation ρ_S, each estimate then with the variance
+    // Σ_j ρ_S(j)² / n (Bartlett) instead of 1/n. Whiteness is the residual's autocorrelation
+    // against that: a smoothed residual is not "slow structure" for being smoothed.
+    let expected = if p.weak {
+        signals::weak_autocorrelation(p.rate_window, dt)
+    } else {
+        vec![1.0]
+    };
+    let spread: f64 = 1.0 + 2.0 * expected.iter().skip(1).map(|r| r * r).sum::<f64>();
     // Two-sided 5 % over 50 lags, Bonferroni: z = Φ⁻¹(1 − 0.025/50) = 3.29.
-    let band = 3.29 / (n.max(1) as f64).sqrt();
+    let band = 3.29 * (spread / n.max(1) as f64).sqrt();
     let autocorr = stats::autocorrelation(&seg_e, lags);
     let (kmax, max_autocorr) = autocorr
         .iter()
         .enumerate()
-        .map(|(k, r)| (k + 1, r.abs()))
+        .map(|(k, r)| {
+            (
+                k + 1,
+                (r - expected.get(k + 1).copied().unwrap_or(0.0)).abs(),
+            )
+        })
         .fold((0, 0.0), |a, b| if b.1 > a.1 { b } else { a });
     let white = max_autocorr <= band;
     let lag_span = ((opts.max_delay / dt).round() as i64).clamp(5, 200);
@@ -143,7 +158,8 @@ pub(crate) fn diagnose(
     let mut structure = Vec::new();
     if !white {
         structure.push(format!(
-            "the residual is not white: autocorrelation {max_autocorr:.2} at lag {:.3} s (band ±{band:.3}) — slow structure no candidate explains",
+            "the residual is not white: autocorrelation {}{max_autocorr:.2} at lag {:.3} s (band ±{band:.3}) — slow structure no candidate explains",
+            if p.weak { "off the smoother's own by " } else { "" },
             kmax as f64 * dt
         ));
     }

@@ -144,6 +144,21 @@ pub fn weak_noise_gains(h: f64, dt: f64) -> (f64, f64, f64) {
     (norm(&weak_smooth(&unit, h, dt)), norm(&v), norm(&a))
 }
 
+/// The autocorrelation ρ(0), ρ(1), … (to where it ends) of white noise through
+/// [`weak_smooth`] at half-support `h` and step `dt`: what a weak-form residual that is
+/// only noise shows.
+pub fn weak_autocorrelation(h: f64, dt: f64) -> Vec<f64> {
+    let m = ((h / (3.0 * dt.max(1e-12))).round() as usize).max(1);
+    let n = 12 * m + 21;
+    let mut unit = vec![0.0; n];
+    unit[n / 2] = 1.0;
+    let k = weak_smooth(&unit, h, dt);
+    let energy: f64 = k.iter().map(|a| a * a).sum();
+    (0..=6 * m)
+        .map(|j| k.iter().zip(&k[j..]).map(|(a, b)| a * b).sum::<f64>() / energy)
+        .collect()
+}
+
 /// Direction of motion from a centred (zero-lag) rate: sgn(ẋ) where |ẋ| exceeds `still`,
 /// 0 where the signal stands still. Offline only: the centred window looks ahead.
 pub fn rate_sign(xdot: &[f64], still: f64) -> Vec<f64> {
