@@ -154,7 +154,7 @@ impl Problem {
             elastic: vec![],
             bounds: self.bounds.clone(),
             states: self.states.clone(),
-            weak: self.weak.then(|| (self.rate_window, self.run_steps())),
+            weak: self.weak().then(|| (self.rate_window, self.steps.clone())),
         };
         let mut q_all = Vec::new();
         for (k, r) in self.runs.iter().enumerate() {
@@ -166,11 +166,16 @@ impl Problem {
                 signals::shifted(&r.t, &self.rates[k].0, tr.delay),
                 signals::shifted(&r.t, &self.rates[k].1, tr.delay),
             );
-            let v_sign = match self.sign_rates.get(k) {
-                Some(v) if self.weak => signals::shifted(&r.t, v, tr.delay),
-                _ => v.clone(),
-            };
-            s.dir.extend(signals::rate_sign(&v_sign, self.still()));
+            // The weak form's direction of motion is from its own rates, not the smoothed q̇.
+            let weak_sign = self
+                .sign_rates
+                .get(k)
+                .filter(|_| self.weak())
+                .map(|v| signals::shifted(&r.t, v, tr.delay));
+            s.dir.extend(signals::rate_sign(
+                weak_sign.as_ref().unwrap_or(&v),
+                self.still(),
+            ));
             let d =
                 r.d.as_ref()
                     .map_or(vec![0.0; n], |d| signals::shifted(&r.t, d, tr.delay));

@@ -118,7 +118,7 @@ pub(crate) fn diagnose(
     // smoother's own autocorrelation ρ_S, each estimate then with the variance
     // Σ_j ρ_S(j)² / n (Bartlett) instead of 1/n. Whiteness is the residual's autocorrelation
     // against that: a smoothed residual is not "slow structure" for being smoothed.
-    let expected = if p.weak {
+    let expected = if p.weak() {
         signals::weak_autocorrelation(p.rate_window, dt)
     } else {
         vec![1.0]
@@ -159,7 +159,7 @@ pub(crate) fn diagnose(
     if !white {
         structure.push(format!(
             "the residual is not white: autocorrelation {}{max_autocorr:.2} at lag {:.3} s (band ±{band:.3}) — slow structure no candidate explains",
-            if p.weak { "off the smoother's own by " } else { "" },
+            if p.weak() { "off the smoother's own by " } else { "" },
             kmax as f64 * dt
         ));
     }

@@ -209,27 +209,16 @@ pub(crate) struct Problem {
     pub resolution: f64,
     /// Each run's angle white noise as measured, rms [rad] (see [`signals::white_noise_rms`]).
     pub noise: Vec<f64>,
-    /// The median sampling step [s].
+    /// The median sampling step [s] (the smallest run's).
     pub step: f64,
+    /// Each run's median sampling step [s].
+    pub steps: Vec<f64>,
     /// Each run's half-window of [`Problem::denoise`]'s smoothing [s] (0: left as measured;
     /// empty: not denoised).
     pub smoothing: Vec<f64>,
     pub rate_window: f64,
     /// Rate and acceleration of each run's angle (set with the window).
     pub rates: Vec<(Vec<f64>, Vec<f64>)>,
-    /// The link equation in weak form (its `tau` is then the smoothed torque). The equation
-    /// τ = I·q̈ + N·q̇ + Σ effects holds of any one linear smoother S applied to every term
-    /// alike, S[τ] = I·S[q̈] + N·S[q̇] + Σ S[effect], with the same coefficients. So the torque,
-    /// the rates and every effect's column go through one smoother of half-support
-    /// `rate_window` ([`signals::weak_smooth`]), and q̈ is taken from only seven samples
-    /// before it: nothing is flattened (a local quartic over ±80 ms took a 4 Hz motion's q̈
-    /// 2 % short, which left 4× the torque noise and brought `gravity` on clean data), while
-    /// the counts' noise in q̈ is averaged away as far as the smoother reaches (a lag's jerk
-    /// term δ·I·q⃛ then stands above it on slow ramps). The report's RMSEs are of the
-    /// smoothed torque.
-    pub weak: bool,
-    /// In the weak form, how far from each run's ends samples take no part [s].
-    pub edge: f64,
     /// In the weak form, each run's q̇ for the direction of motion: a local quadratic over
     /// ±[`WEAK_SIGN_WINDOW`] (the smoothed q̇ turns a wide smoother's half-support early).
     pub sign_rates: Vec<Vec<f64>>,
@@ -278,14 +267,9 @@ impl Problem {
             bounds.push((start, tau.len()));
             runs.push(r.clone());
         }
-        // The link equation in weak form: each run's ends take no part, as far as the widest
-        // smoother reaches (a tenth of the shortest run at most).
-        let weak = opts.model == Declared::Link;
-        let edge = runs
-            .iter()
-            .map(|r: &Run| 0.1 * (r.t[r.t.len() - 1] - r.t[0]))
-            .fold(WEAK_EDGE, f64::min);
-        if weak {
+        // The link equation in weak form: each run's ends take no part.
+        if opts.model == Declared::Link {
+            let edge = weak_edge(&runs);
             for (k, &(a, _)) in bounds.iter().enumerate() {
                 let t = &runs[k].t;
                 let (t0, t1) = (t[0], t[t.len() - 1]);
@@ -314,7 +298,8 @@ impl Problem {
             .iter()
             .map(|r| signals::white_noise_rms(&angle_of(r)))
             .collect();
-        let step = sampling_step(&runs);
+        let steps: Vec<f64> = runs.iter().map(|r| signals::median_step(&r.t)).collect();
+        let step = steps.iter().copied().fold(f64::INFINITY, f64::min);
         let mut p = Problem {
             runs,
             bounds,
@@ -327,12 +312,11 @@ impl Problem {
             resolution: if res.is_finite() { res } else { 0.0 },
             noise,
             step,
+            steps,
             smoothing: vec![],
             rate_window: 0.0,
             rates: vec![],
             sign_rates: vec![],
-            weak,
-            edge: if weak { edge } else { 0.0 },
             restoring: None,
             widths: vec![],
             fit_runs: fit.len(),
@@ -360,25 +344,26 @@ impl Problem {
     /// samples, and the direction of motion from a local quadratic over ±20 ms.
     pub fn set_rate_window(&mut self, w: f64) {
         self.rate_window = w;
-        if self.weak {
-            let dts = self.run_steps();
-            let q_of = |r: &Run| r.q.clone().unwrap_or_default();
+        if self.weak() {
+            fn q(r: &Run) -> &[f64] {
+                r.q.as_deref().unwrap_or(&[])
+            }
             self.rates = self
                 .runs
                 .iter()
-                .zip(&dts)
-                .map(|(r, &dt)| signals::weak_rates(&r.t, &q_of(r), w, dt))
+                .zip(&self.steps)
+                .map(|(r, &dt)| signals::weak_rates(&r.t, q(r), w, dt))
                 .collect();
             self.tau = self
                 .runs
                 .iter()
-                .zip(&dts)
+                .zip(&self.steps)
                 .flat_map(|(r, &dt)| signals::weak_smooth(&r.tau, w, dt))
                 .collect();
             self.sign_rates = self
                 .runs
                 .iter()
-                .map(|r| signals::local_rates(&r.t, &q_of(r), WEAK_SIGN_WINDOW).0)
+                .map(|r| signals::local_rates(&r.t, q(r), WEAK_SIGN_WINDOW).0)
                 .collect();
             return;
         }
@@ -438,7 +423,7 @@ impl Problem {
 
     /// The half-window of the rate whose sign is the direction of motion [s].
     fn sign_window(&self) -> f64 {
-        if self.weak {
+        if self.weak() {
             WEAK_SIGN_WINDOW
         } else {
             self.rate_window
@@ -617,20 +602,31 @@ pub const WEAK_EDGE: f64 = 0.32;
 pub const WEAK_SIGN_WINDOW: f64 = 0.02;
 
 impl Problem {
-    /// Each run's median sampling step [s].
-    pub fn run_steps(&self) -> Vec<f64> {
-        self.runs
-            .iter()
-            .map(|r| signals::median_step(&r.t))
-            .collect()
+    /// Whether the link equation is fitted in weak form (its `tau` is then the smoothed
+    /// torque): it always is. The equation τ = I·q̈ + N·q̇ + Σ effects holds of any one
+    /// linear smoother S applied to every term alike, S[τ] = I·S[q̈] + N·S[q̇] + Σ S[effect], with the same coefficients. So the torque,
+    /// the rates and every effect's column go through one smoother of half-support
+    /// `rate_window` ([`signals::weak_smooth`]), and q̈ is taken from only seven samples
+    /// before it: nothing is flattened (a local quartic over ±80 ms took a 4 Hz motion's q̈
+    /// 2 % short, which left 4× the torque noise and brought `gravity` on clean data), while
+    /// the counts' noise in q̈ is averaged away as far as the smoother reaches (a lag's jerk
+    /// term δ·I·q⃛ then stands above it on slow ramps). The report's RMSEs are of the
+    /// smoothed torque.
+    pub fn weak(&self) -> bool {
+        self.model == Declared::Link
+    }
+
+    /// In the weak form, how far from each run's ends samples take no part [s].
+    pub fn edge(&self) -> f64 {
+        weak_edge(&self.runs)
     }
 }
 
-/// The median sampling step over the runs [s] (the smallest run's).
-fn sampling_step(runs: &[Run]) -> f64 {
+/// [`WEAK_EDGE`], or a tenth of the shortest run where that is less [s].
+fn weak_edge(runs: &[Run]) -> f64 {
     runs.iter()
-        .map(|r| signals::median_step(&r.t))
-        .fold(f64::INFINITY, f64::min)
+        .map(|r| 0.1 * (r.t[r.t.len() - 1] - r.t[0]))
+        .fold(WEAK_EDGE, f64::min)
 }
 
 #[cfg(test)]

@@ -1533,7 +1533,7 @@ pub(crate) fn rate_window(
 ) -> Result<f64, IdentifyError> {
     match opts.rate_window {
         Some(w) => Ok(w),
-        None if raw.weak => weak_window(raw, rows, opts),
+        None if raw.weak() => weak_window(raw, rows, opts),
         None => Ok(0.02),
     }
 }
@@ -1559,10 +1559,10 @@ fn weak_window(raw: &mut Problem, rows: &Rows, opts: &Options) -> Result<f64, Id
     let tried: Vec<f64> = WEAK_WINDOWS
         .iter()
         .copied()
-        .filter(|&h| h <= raw.edge + 1e-12)
+        .filter(|&h| h <= raw.edge() + 1e-12)
         .collect();
     let Some(&widest) = tried.last() else {
-        return Ok(raw.edge.max(raw.step));
+        return Ok(raw.edge().max(raw.step));
     };
     raw.set_rate_window(widest);
     // I beside every shape-free candidate (an offset, friction, gravity), so that an effect

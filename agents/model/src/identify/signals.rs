@@ -91,12 +91,26 @@ pub fn local_fit_of_degree(
 /// itself). It is one linear operator: applied to the torque and to every column of a linear
 /// model alike, τ = Σ cₖ·colₖ stays true of the smoothed series, with the same cₖ.
 pub fn weak_smooth(x: &[f64], half_support: f64, dt: f64) -> Vec<f64> {
-    let m = ((half_support / (3.0 * dt.max(1e-12))).round() as usize).max(1);
+    let m = weak_m(half_support, dt);
     let mut y = x.to_vec();
     for _ in 0..3 {
         y = moving_average(&y, m);
     }
     y
+}
+
+/// The weak form's moving averages' half-width m [samples]: h / (3·dt) rounded, at least 1.
+fn weak_m(half_support: f64, dt: f64) -> usize {
+    ((half_support / (3.0 * dt.max(1e-12))).round() as usize).max(1)
+}
+
+/// A unit impulse, and its sampling instants every `dt`, in the middle of a series long
+/// enough that its ends, where the averages are short, see none of the weak form's response.
+fn weak_impulse(half_support: f64, dt: f64) -> (Vec<f64>, Vec<f64>) {
+    let n = 12 * weak_m(half_support, dt) + 21;
+    let mut unit = vec![0.0; n];
+    unit[n / 2] = 1.0;
+    ((0..n).map(|k| k as f64 * dt).collect(), unit)
 }
 
 /// Centred moving average of 2m + 1 samples, over the samples there are near the ends.
@@ -131,14 +145,9 @@ pub fn weak_rates(t: &[f64], x: &[f64], half_support: f64, dt: f64) -> (Vec<f64>
 
 /// The white-noise gains of the weak form at half-support `h` and step `dt`: the rms of the
 /// smoothed series per unit rms of white noise in it (Σ w²)^½, and of its q̇ and q̈ per unit
-/// rms of white noise in the angle. From the impulse responses (on a series long enough that
-/// its ends, where the averages are short, see none of them).
+/// rms of white noise in the angle. From the impulse responses ([`weak_impulse`]).
 pub fn weak_noise_gains(h: f64, dt: f64) -> (f64, f64, f64) {
-    let m = ((h / (3.0 * dt.max(1e-12))).round() as usize).max(1);
-    let n = 12 * m + 21;
-    let mut unit = vec![0.0; n];
-    unit[n / 2] = 1.0;
-    let t: Vec<f64> = (0..n).map(|k| k as f64 * dt).collect();
+    let (t, unit) = weak_impulse(h, dt);
     let norm = |v: &[f64]| v.iter().map(|a| a * a).sum::<f64>().sqrt();
     let (v, a) = weak_rates(&t, &unit, h, dt);
     (norm(&weak_smooth(&unit, h, dt)), norm(&v), norm(&a))
@@ -148,13 +157,9 @@ pub fn weak_noise_gains(h: f64, dt: f64) -> (f64, f64, f64) {
 /// [`weak_smooth`] at half-support `h` and step `dt`: what a weak-form residual that is
 /// only noise shows.
 pub fn weak_autocorrelation(h: f64, dt: f64) -> Vec<f64> {
-    let m = ((h / (3.0 * dt.max(1e-12))).round() as usize).max(1);
-    let n = 12 * m + 21;
-    let mut unit = vec![0.0; n];
-    unit[n / 2] = 1.0;
-    let k = weak_smooth(&unit, h, dt);
+    let k = weak_smooth(&weak_impulse(h, dt).1, h, dt);
     let energy: f64 = k.iter().map(|a| a * a).sum();
-    (0..=6 * m)
+    (0..=6 * weak_m(h, dt))
         .map(|j| k.iter().zip(&k[j..]).map(|(a, b)| a * b).sum::<f64>() / energy)
         .collect()
 }
@@ -542,20 +547,25 @@ mod tests {
         assert_eq!(steps(&smooth), 0);
     }
 
+    /// Uniform numbers in [0, 1) from a tiny LCG: the tests' own, reproducible noise.
+    fn uniforms(mut state: u64) -> impl FnMut() -> f64 {
+        move || {
+            state = state
+                .wrapping_mul(6364136223846793005)
+                .wrapping_add(1442695040888963407);
+            (state >> 11) as f64 / (1u64 << 53) as f64
+        }
+    }
+
     #[test]
     fn the_weak_forms_rates_carry_the_smoothers_response_exactly_as_the_smoothed_signal_does() {
         // A 4 Hz sine sampled at 500 Hz with a jitter of a tenth of a step: the weak form's
         // q̈ is the smoothed true q̈ (what the smoothed torque of I·q̈ is, divided by I), at a
         // narrow and at a wide smoother alike, within the quartic's (ωdt)⁴ error.
         let (w, dt) = (std::f64::consts::TAU * 4.0, 0.002);
-        let mut seed = 7u64;
+        let mut uniform = uniforms(7);
         let t: Vec<f64> = (0..5000)
-            .map(|i| {
-                seed = seed
-                    .wrapping_mul(6364136223846793005)
-                    .wrapping_add(1442695040888963407);
-                (i as f64 + 0.1 * (seed >> 11) as f64 / (1u64 << 53) as f64) * dt
-            })
+            .map(|i| (i as f64 + 0.1 * uniform()) * dt)
             .collect();
         let x: Vec<f64> = t.iter().map(|t| 0.3 * (w * t).sin()).collect();
         let (xd, xdd): (Vec<f64>, Vec<f64>) = t
@@ -583,13 +593,7 @@ mod tests {
         // Monte Carlo peer of the impulse responses: 200 000 samples of unit white noise
         // through the smoother and through the rates, rms within 3 % of the gains.
         let dt = 0.002;
-        let mut seed = 11u64;
-        let mut uniform = || {
-            seed = seed
-                .wrapping_mul(6364136223846793005)
-                .wrapping_add(1442695040888963407);
-            (seed >> 11) as f64 / (1u64 << 53) as f64
-        };
+        let mut uniform = uniforms(11);
         let noise: Vec<f64> = (0..200_000)
             .map(|_| (uniform() - 0.5) * 12f64.sqrt())
             .collect();
