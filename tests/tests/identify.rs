@@ -411,6 +411,10 @@ fn link_equation_on_clean_data_adds_nothing_and_fits_inertia_and_damping() {
     let v = identify(&awas("a-clean", ""), &["--model", "link"]);
     adds_nothing(&v);
     link_parameters_match_the_config(&v);
+    // The 14-bit link angle is read as the taut string through its counts, and the report
+    // names the run it was done for.
+    let strung = &v["weak_form"]["angle_read_as_taut_string"];
+    assert_eq!(strung.as_array().map(Vec::len), Some(1), "{strung}");
 }
 
 #[test]

@@ -649,7 +649,18 @@ fn on_a_link_turning_where_gravitys_sine_is_flat_an_offset_is_named_an_offset_an
     let id = identify_case(&gravity);
     let names: Vec<&str> = id.effects.iter().map(|e| e.effect.name()).collect();
     assert_eq!(names, ["gravity"]);
-    within_a_tenth_of_the_clean_twin(&gravity, &id);
+    let mgl = param_of(&id, "mgl_nm");
+    let truth = generate(&gravity, 0).size;
+    assert!(
+        (mgl / truth - 1.0).abs() < 0.02,
+        "m·g·l {mgl} against {truth}"
+    );
+    // Within a quarter of the clean twin's error: its floor is 0.28 mN·m since the 14-bit
+    // angle is read as the taut string through its counts (1.2 mN·m as a staircase), and
+    // what gravity leaves over it, 0.2 mN·m, is a tenth of a per cent of gravity's torque:
+    // m·g·l 1 % over, where an 18-bit encoder fits it 0.4 % over (the string cuts inside the
+    // swing's turns by up to half a count).
+    within_the_clean_twin(&gravity, &id, 1.25);
 }
 
 /// One case: even seeds a multi-sine, odd ones ramp-and-hold.
@@ -794,7 +805,7 @@ fn table_over_many_seeds() {
 }
 
 #[test]
-#[ignore = "debugging aid: CASE=plant,effect,seed"]
+#[ignore = "debugging aid: CASE=plant,effect,seed[,rate_hz,noise]"]
 fn one_case() {
     let spec = std::env::var("CASE").unwrap_or_default();
     let parts: Vec<&str> = spec.split(',').collect();
@@ -808,8 +819,13 @@ fn one_case() {
         .copied()
         .find(|i| i.label() == parts[1]);
     let seed: u64 = parts[2].parse().unwrap();
+    // CASE=plant,effect,seed,rate_hz,noise sets the rate and the torque noise as a test's case
+    // does (else the table's for that seed).
+    let at = |k: usize| parts.get(k).and_then(|v| v.parse::<f64>().ok());
     for inj in [None, inject] {
-        let c = cases(plant, inj, seed..seed + 1)[0];
+        let mut c = cases(plant, inj, seed..seed + 1)[0];
+        c.rate_hz = at(3).unwrap_or(c.rate_hz);
+        c.noise = at(4).unwrap_or(c.noise);
         let r = identify_case(&c);
         println!(
             "{c:?}\n size {:.5} before {:.5} tared {:.5} after {:.5}",

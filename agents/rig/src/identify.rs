@@ -564,7 +564,11 @@ fn report_json(
                 .map_or(f64::NAN, |p| p.1)
         };
         v["inertia"] = num(get("inertia_kgm2"));
-        v["weak_form"] = json!({"half_support_s": num(res.rate_window), "rmse_of": "the torque through the smoother"});
+        v["weak_form"] = json!({
+            "half_support_s": num(res.rate_window),
+            "rmse_of": "the torque through the smoother",
+            "angle_read_as_taut_string": res.strung,
+        });
         v["damping"] = num(get("damping_nms_per_rad"));
     }
     v
@@ -601,8 +605,16 @@ fn sig(v: f64) -> String {
 
 /// What the link equation's RMSEs are of (the weak form).
 fn weak_form_line(res: &Identified) -> String {
+    let strung = if res.strung.is_empty() {
+        String::new()
+    } else {
+        format!(
+            "; the quantised angle of {} read as the taut string through its counts",
+            res.strung.join(", ")
+        )
+    };
     format!(
-        "link equation in weak form: the torque, q̇, q̈ and every effect through one smoother of half-support {} ms; the RMSEs are of the smoothed torque",
+        "link equation in weak form: the torque, q̇, q̈ and every effect through one smoother of half-support {} ms; the RMSEs are of the smoothed torque{strung}",
         sig(res.rate_window * 1e3)
     )
 }

@@ -277,6 +277,9 @@ pub struct Identified {
     /// gives each run's half-window [s] (0: that run left as measured; empty: none denoised).
     pub angle_noise: f64,
     pub smoothing: Vec<(String, f64)>,
+    /// The runs whose link angle was read as the taut string through its counts (a quantised
+    /// angle whose counts are its only error: its staircase's sawtooth would reach q̈).
+    pub strung: Vec<String>,
     /// The half-window of the local fits for rates (and the joint models' deflection) [s].
     pub rate_window: f64,
 }
@@ -619,6 +622,13 @@ pub fn identify(
             .iter()
             .zip(&p.smoothing)
             .map(|(r, h)| (r.name.clone(), *h))
+            .collect(),
+        strung: p
+            .runs
+            .iter()
+            .zip(&p.strung)
+            .filter(|(_, s)| **s)
+            .map(|(r, _)| r.name.clone())
             .collect(),
         rate_window: p.rate_window,
     })

@@ -216,6 +216,9 @@ pub(crate) struct Problem {
     /// Each run's half-window of [`Problem::denoise`]'s smoothing [s] (0: left as measured;
     /// empty: not denoised).
     pub smoothing: Vec<f64>,
+    /// Each run's link angle read as the taut string through its counts
+    /// ([`signals::taut_string`]).
+    pub strung: Vec<bool>,
     pub rate_window: f64,
     /// Rate and acceleration of each run's angle (set with the window).
     pub rates: Vec<(Vec<f64>, Vec<f64>)>,
@@ -294,10 +297,27 @@ impl Problem {
             1e-6
         });
         // The encoder's own noise, measured before it is averaged away below.
-        let noise = runs
+        let noise: Vec<f64> = runs
             .iter()
             .map(|r| signals::white_noise_rms(&angle_of(r)))
             .collect();
+        // The link angle's q̈ in the weak form: a quantised angle read as the taut string
+        // through its counts, not as a staircase (see [`signals::taut_string`]) — where the
+        // counts are the angle's only error: a white noise of at most 1.5 times the
+        // quantisation's (a fast motion's counts read as white noise of a count/√12; an
+        // encoder's own noise of a count more than doubles that). A noisier encoder moves
+        // readings by more than half a count, and the weak form averages it.
+        let mut strung = vec![false; runs.len()];
+        if opts.model == Declared::Link && res.is_finite() {
+            for ((r, &white), strung) in runs.iter_mut().zip(&noise).zip(&mut strung) {
+                if let Some(q) = r.q.as_mut().filter(|q| {
+                    white <= 1.5 * res / 12f64.sqrt() && signals::reads_in_counts(q, res)
+                }) {
+                    *q = signals::taut_string(&r.t, q, res);
+                    *strung = true;
+                }
+            }
+        }
         let steps: Vec<f64> = runs.iter().map(|r| signals::median_step(&r.t)).collect();
         let step = steps.iter().copied().fold(f64::INFINITY, f64::min);
         let mut p = Problem {
@@ -314,6 +334,7 @@ impl Problem {
             step,
             steps,
             smoothing: vec![],
+            strung,
             rate_window: 0.0,
             rates: vec![],
             sign_rates: vec![],

@@ -312,6 +312,114 @@ pub fn smoothing_window(
     }
 }
 
+/// Whether `x` reads in whole counts of `count` (from some zero): 95 % of its changes
+/// within 1 % of a whole number of counts.
+pub fn reads_in_counts(x: &[f64], count: f64) -> bool {
+    if count.is_nan() || count <= 0.0 {
+        return false;
+    }
+    let changes: Vec<f64> = x
+        .windows(2)
+        .map(|w| (w[1] - w[0]) / count)
+        .filter(|d| d.abs() > 1e-9)
+        .collect();
+    !changes.is_empty()
+        && changes
+            .iter()
+            .filter(|d| (*d - d.round()).abs() < 0.01)
+            .count()
+            * 20
+            >= changes.len() * 19
+}
+
+/// A quantised angle read as the taut string through its counts: the shortest path that
+/// stays within half a count of every reading (at each sample, between the readings' bounds;
+/// straight between samples). A quantised reading's error is not white: where the angle moves
+/// less than a count per sample it is a staircase, and where it moves near a whole number of
+/// counts per sample it is a sawtooth of a count's height whose period, a count over the
+/// speed's distance to that whole number, sweeps through any smoother's pass band as the
+/// motion speeds up and slows down — through q̈, jumps of a count. What the readings know is
+/// that the angle was within half a count of each; the taut string is the straightest path
+/// they allow: it bends only where the counts make it, it crosses from one count to the next
+/// between the samples where the reading changed, and it never jumps. (The funnel of slopes
+/// from the last bend: the path bends at the bound that closes it.)
+pub fn taut_string(t: &[f64], x: &[f64], count: f64) -> Vec<f64> {
+    let n = x.len();
+    if n < 3 || count.is_nan() || count <= 0.0 {
+        return x.to_vec();
+    }
+    // Neither end is pinned to its reading (a reading is half a count from the angle): each
+    // pass starts on its first reading and runs free at its last, and the first half comes
+    // from the pass run backwards in time. Away from the ends the two are the same string.
+    let forward = string_free_at_the_end(t, x, count);
+    let (tr, xr): (Vec<f64>, Vec<f64>) = t.iter().rev().map(|t| -t).zip(x.iter().rev()).unzip();
+    let backward = string_free_at_the_end(&tr, &xr, count);
+    (0..n)
+        .map(|i| {
+            if i < n / 2 {
+                backward[n - 1 - i]
+            } else {
+                forward[i]
+            }
+        })
+        .collect()
+}
+
+/// The taut string from the first reading, its last segment as flat as the funnel lets it
+/// run (see [`taut_string`]).
+fn string_free_at_the_end(t: &[f64], x: &[f64], count: f64) -> Vec<f64> {
+    let n = x.len();
+    let half = 0.5 * count;
+    let mut out = x.to_vec();
+    let (mut a, mut va) = (0usize, x[0]);
+    while a + 1 < n {
+        // The funnel from the apex (t[a], va): the least slope to an upper bound and the
+        // greatest to a lower one, with where each was reached.
+        let (mut up, mut iu) = (f64::INFINITY, a);
+        let (mut lo, mut il) = (f64::NEG_INFINITY, a);
+        let mut bend = None;
+        for k in a + 1..n {
+            let dt = t[k] - t[a];
+            // (A repeated instant, or one out of order, bounds nothing.)
+            if dt.is_nan() || dt <= 0.0 {
+                continue;
+            }
+            let (su, sl) = ((x[k] + half - va) / dt, (x[k] - half - va) / dt);
+            if sl > up {
+                // The lower bound rises above every line under the upper ones: bend down at
+                // the upper bound that set the least slope.
+                bend = Some((iu, x[iu] + half));
+                break;
+            }
+            if su < lo {
+                bend = Some((il, x[il] - half));
+                break;
+            }
+            if su < up {
+                (up, iu) = (su, k);
+            }
+            if sl > lo {
+                (lo, il) = (sl, k);
+            }
+        }
+        let (b, vb) = match bend {
+            Some((b, vb)) if b > a => (b, vb),
+            _ => {
+                // Open to the end: as flat as the funnel allows (a run ends at rest, or
+                // moving, where the next bend is a few samples away).
+                let s = if lo <= up { 0.0f64.clamp(lo, up) } else { 0.0 };
+                let b = n - 1;
+                (b, va + s * (t[b] - t[a]))
+            }
+        };
+        for k in a + 1..=b {
+            out[k] = va + (vb - va) * (t[k] - t[a]) / (t[b] - t[a]);
+        }
+        (a, va) = (b, vb);
+    }
+    out
+}
+
 /// The median of the positive steps of `t`.
 pub fn median_step(t: &[f64]) -> f64 {
     let d: Vec<f64> = t
@@ -585,6 +693,79 @@ mod tests {
                 .fold(0.0f64, |m, (p, q)| m.max((p - q).abs()));
             assert!(err_a < 1e-3 * 0.3 * w * w, "h {h}: q̈ off by {err_a}");
             assert!(err_v < 1e-3 * 0.3 * w, "h {h}: q̇ off by {err_v}");
+        }
+    }
+
+    #[test]
+    fn a_quantised_angle_read_as_the_taut_string_gives_the_weak_forms_q̈_where_the_staircase_does_not()
+     {
+        // A 14-bit encoder at 1 kHz (a tenth of a step's jitter) on quintic ramps out and back,
+        // a hold between, the run starting and ending mid-ramp: the staircase's sawtooth passes
+        // q̈ jumps of a count wherever the speed is near a whole number of counts per sample,
+        // or under one. The taut string stays within half a count of every reading and within
+        // a count of the truth, and its q̈ through the weak form's smoother is the true one's
+        // to a fraction of the staircase's error, up to the run's ends.
+        let (count, dt) = (std::f64::consts::TAU / 16384.0, 0.001);
+        let quintic = |t: f64, t0: f64, dur: f64, from: f64, to: f64| -> f64 {
+            let s = ((t - t0) / dur).clamp(0.0, 1.0);
+            from + (to - from) * s * s * s * (10.0 - 15.0 * s + 6.0 * s * s)
+        };
+        let truth = |t: f64| quintic(t, 1.0, 1.5, 0.0, 0.6) + quintic(t, 4.0, 4.0, 0.0, -0.9);
+        let mut uniform = uniforms(5);
+        let t: Vec<f64> = (1200..6500)
+            .map(|i| (i as f64 + 0.1 * uniform()) * dt)
+            .collect();
+        let q: Vec<f64> = t.iter().map(|&t| truth(t)).collect();
+        let read: Vec<f64> = q.iter().map(|q| (q / count).round() * count).collect();
+        assert!(reads_in_counts(&read, count) && !reads_in_counts(&q, count));
+        let string = taut_string(&t, &read, count);
+        for i in 0..t.len() {
+            assert!(
+                (string[i] - read[i]).abs() <= 0.5 * count * (1.0 + 1e-9),
+                "{i}"
+            );
+            assert!((string[i] - q[i]).abs() <= count, "{i}");
+        }
+        let h = 0.08;
+        let acc = |x: &[f64]| weak_rates(&t, x, h, dt).1;
+        let a0 = acc(&q);
+        let err = |x: &[f64], inner: std::ops::Range<usize>| {
+            let a = acc(x);
+            let n = inner.len() as f64;
+            (inner.map(|i| (a[i] - a0[i]).powi(2)).sum::<f64>() / n).sqrt()
+        };
+        let n = t.len();
+        // A run that starts at rest 0.4 counts above a reading, then moves 800 counts up: its
+        // q̈ from the first sample on within 5 % of the peak.
+        let rest: Vec<f64> = (0..2000)
+            .map(|i| (i as f64 + 0.1 * uniform()) * dt)
+            .collect();
+        let q_rest: Vec<f64> = rest
+            .iter()
+            .map(|&t| (100.4 + 800.0 * quintic(t, 0.5, 1.5, 0.0, 1.0)) * count)
+            .collect();
+        let read_rest: Vec<f64> = q_rest.iter().map(|q| (q / count).round() * count).collect();
+        let strung = taut_string(&rest, &read_rest, count);
+        let (a_true, a_strung) = (
+            weak_rates(&rest, &q_rest, h, dt).1,
+            weak_rates(&rest, &strung, h, dt).1,
+        );
+        let worst = (0..600).fold(0.0f64, |m, i| m.max((a_strung[i] - a_true[i]).abs()));
+        let peak = a_true.iter().fold(0.0f64, |m, a| m.max(a.abs()));
+        assert!(
+            worst < 0.05 * peak,
+            "q̈ off by {worst} at the start, peak {peak}"
+        );
+        for (part, inner) in [
+            ("inside", 400..n - 400),
+            ("ends", 0..400),
+            ("ends", n - 400..n),
+        ] {
+            let (staircase, strung) = (err(&read, inner.clone()), err(&string, inner));
+            assert!(
+                strung < 0.2 * staircase,
+                "{part}: q̈ error rms {strung} against the staircase's {staircase} rad/s²"
+            );
         }
     }
 
