@@ -289,6 +289,19 @@ fn on_the_link_equation_a_fast_motion_is_not_flattened_into_gravity_nor_a_lag_le
 }
 
 #[test]
+fn on_the_link_equation_a_ripple_is_found_at_its_period_where_its_neighbours_on_the_grid_are_not() {
+    // Ramps and holds at 100 Hz: the ripple's period was searched on a grid 11 % apart, and
+    // over the link's range of 2 rad a period 0.30 rad off by half of that drifts 0.6 of a
+    // period — both neighbours of the true period out of phase. A period of 0.25 rad won
+    // (after/before 0.88, 22× the clean twin's floor). On a grid a quarter of a period over
+    // the range apart, the ripple is found at its floor.
+    let c = case(Plant::Link, Some(Inject::Ripple), 7, 100.0, 0.005);
+    let o = outcome(&c);
+    assert_eq!(o.names, ["periodic_ripple"], "{c:?}");
+    assert!(o.after < 1.1 * o.floor, "{c:?}: {o:?}");
+}
+
+#[test]
 fn on_the_link_equation_a_smoothed_residual_is_called_white_unless_something_is_left_in_it() {
     // In the weak form the residual is the smoothed torque's: noise alone has the smoother's
     // autocorrelation, which the whiteness test expects (it called every clean link residual

@@ -157,8 +157,14 @@ pub(crate) fn candidates(p: &Problem, opts: &Options, dt: f64, duration: f64) ->
                 let angle = if has_q { q_all.clone() } else { p.angle() };
                 let range = span(&angle);
                 // At least five periods over the range: fewer is a smooth function of the
-                // angle, which any misfit of the declared model also is.
-                Ok(each(e, logspace(range / 100.0, range / 5.0, 30)))
+                // angle, which any misfit of the declared model also is. Spaced evenly in
+                // periods over the range, a quarter apart: a period off by ΔP drifts
+                // R·ΔP/P² periods over the range R, and a grid coarser than a fraction of one
+                // (it was 11 % in the period, up to 11 periods of drift at a hundred)
+                // can leave the true period's neighbours both out of phase, and another period
+                // wins.
+                let cycles = (0..=380).map(|k| 5.0 + 0.25 * k as f64);
+                Ok(each(e, cycles.rev().map(|c| range / c).collect()))
             }
             _ => Ok(vec![Shaped::new(e, f64::NAN)]),
         };
