@@ -625,8 +625,9 @@ pub const WEAK_SIGN_WINDOW: f64 = 0.02;
 impl Problem {
     /// Whether the link equation is fitted in weak form (its `tau` is then the smoothed
     /// torque): it always is. The equation τ = I·q̈ + N·q̇ + Σ effects holds of any one
-    /// linear smoother S applied to every term alike, S[τ] = I·S[q̈] + N·S[q̇] + Σ S[effect], with the same coefficients. So the torque,
-    /// the rates and every effect's column go through one smoother of half-support
+    /// linear smoother S applied to every term alike, S[τ] = I·S[q̈] + N·S[q̇] + Σ S[effect],
+    /// with the same coefficients. So the torque, the rates and every effect's column go
+    /// through one smoother of half-support
     /// `rate_window` ([`signals::weak_smooth`]), and q̈ is taken from only seven samples
     /// before it: nothing is flattened (a local quartic over ±80 ms took a 4 Hz motion's q̈
     /// 2 % short, which left 4× the torque noise and brought `gravity` on clean data), while

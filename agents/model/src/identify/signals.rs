@@ -342,7 +342,8 @@ pub fn reads_in_counts(x: &[f64], count: f64) -> bool {
 /// that the angle was within half a count of each; the taut string is the straightest path
 /// they allow: it bends only where the counts make it, it crosses from one count to the next
 /// between the samples where the reading changed, and it never jumps. (The funnel of slopes
-/// from the last bend: the path bends at the bound that closes it.)
+/// from the last bend: the path bends at the bound that closes it.) `t` must increase
+/// strictly, as [`super::identify`] checks of every run.
 pub fn taut_string(t: &[f64], x: &[f64], count: f64) -> Vec<f64> {
     let n = x.len();
     if n < 3 || count.is_nan() || count <= 0.0 {
@@ -380,10 +381,6 @@ fn string_free_at_the_end(t: &[f64], x: &[f64], count: f64) -> Vec<f64> {
         let mut bend = None;
         for k in a + 1..n {
             let dt = t[k] - t[a];
-            // (A repeated instant, or one out of order, bounds nothing.)
-            if dt.is_nan() || dt <= 0.0 {
-                continue;
-            }
             let (su, sl) = ((x[k] + half - va) / dt, (x[k] - half - va) / dt);
             if sl > up {
                 // The lower bound rises above every line under the upper ones: bend down at
