@@ -73,7 +73,7 @@ impl Effect {
                 "friction in the spring or the lever: τ̂ + Σ wᵢ·s_rᵢ(x), a Prandtl–Ishlinskii sum of stop operators with wᵢ ≥ 0 (loading above unloading: it dissipates)"
             }
             Effect::CoulombFriction => {
-                "dry friction where the part moves: + F_c·sgn(ẋ), F_c ≥ 0, the direction from a centred rate with a dead band (0 at rest)"
+                "dry friction where the part moves: + F_c·sgn(ẋ), F_c ≥ 0, the direction from a centred rate with a dead band; where the motion stops the force is released (0) or held (a stuck contact keeps it: held_at_rest = 1), whichever the data shows"
             }
             Effect::ViscousFriction => "viscous friction where the part moves: + b·ẋ, b ≥ 0",
             Effect::Backlash => {
@@ -227,6 +227,8 @@ impl Shaped {
                     )
                 })
                 .collect(),
+            // Shape 1: the force held where the motion stops; else released there.
+            Effect::CoulombFriction if r == 1.0 => vec![(s.dir_held.clone(), Bound::NonNegative)],
             Effect::CoulombFriction => vec![(s.dir.clone(), Bound::NonNegative)],
             Effect::ViscousFriction => vec![(s.xdot.clone(), Bound::NonNegative)],
             // The live stop's own torque at unit rate on both sides.
@@ -394,7 +396,10 @@ impl Shaped {
                 ("width_rad", 2.0 * self.shape),
                 ("half_width_rad", self.shape),
             ],
-            Effect::CoulombFriction => vec![("friction_nm", c(0))],
+            Effect::CoulombFriction => vec![
+                ("friction_nm", c(0)),
+                ("held_at_rest", f64::from(self.shape == 1.0)),
+            ],
             Effect::ViscousFriction => vec![("damping_nms_per_rad", c(0))],
             Effect::HardStop if self.symmetric => vec![
                 ("onset_rad", self.shape),

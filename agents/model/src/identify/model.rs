@@ -68,7 +68,11 @@ pub struct Signals {
     pub xs: Vec<f64>,
     pub xdot: Vec<f64>,
     pub xddot: Vec<f64>,
+    /// The direction of motion: sgn of the rate, 0 where it is within the dead band.
     pub dir: Vec<f64>,
+    /// The direction a stuck contact's friction keeps: `dir` with its still stretches given
+    /// the direction that entered them ([`signals::held_sign`]).
+    pub dir_held: Vec<f64>,
     /// Pivot position [m] (0 where absent).
     pub d: Vec<f64>,
     /// Link angle, when known.
@@ -140,6 +144,7 @@ impl Problem {
             xdot: vec![],
             xddot: vec![],
             dir: vec![],
+            dir_held: vec![],
             d: vec![],
             q: None,
             angle: vec![],
@@ -172,10 +177,10 @@ impl Problem {
                 .get(k)
                 .filter(|_| self.weak())
                 .map(|v| signals::shifted(&r.t, v, tr.delay));
-            s.dir.extend(signals::rate_sign(
-                weak_sign.as_ref().unwrap_or(&v),
-                self.still(),
-            ));
+            let rate = weak_sign.as_ref().unwrap_or(&v);
+            let dir = signals::rate_sign(rate, self.still());
+            s.dir_held.extend(signals::held_sign(&r.t, rate, &dir));
+            s.dir.extend(dir);
             let d =
                 r.d.as_ref()
                     .map_or(vec![0.0; n], |d| signals::shifted(&r.t, d, tr.delay));

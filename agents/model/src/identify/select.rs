@@ -153,6 +153,9 @@ pub(crate) fn candidates(p: &Problem, opts: &Options, dt: f64, duration: f64) ->
                 }
                 Ok(g)
             }
+            // Where the motion stops, the friction released (NaN) or held (1.0): a contact
+            // that nothing slides keeps the force it had (bristle, elastoplastic models).
+            (Effect::CoulombFriction, _) => Ok(each(e, vec![f64::NAN, 1.0])),
             (Effect::PeriodicRipple, _) => {
                 let angle = if has_q { q_all.clone() } else { p.angle() };
                 let range = span(&angle);

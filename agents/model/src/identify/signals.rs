@@ -172,6 +172,54 @@ pub fn rate_sign(xdot: &[f64], still: f64) -> Vec<f64> {
         .collect()
 }
 
+/// The shortest standstill [s]: a still stretch between opposite motions that lasts this long
+/// is a hold, not a reversal passing through the dead band (which lasts 2·still/|ẍ|: under
+/// 0.1 s at the slowest turns of the tables' motions; a test machine holds for seconds).
+pub const HOLD_S: f64 = 0.2;
+
+/// The direction a stuck contact's friction keeps: [`rate_sign`]'s `dir` with each still
+/// stretch (0) given the direction of the motion that entered it, so that dry friction holds
+/// its force where the motion stops (a bristle or elastoplastic contact: nothing slides to
+/// release it) instead of dropping to 0. Where the motion leaves a hold ([`HOLD_S`] or longer)
+/// the other way, the direction turns where the centred `rate` takes the new sign for good
+/// (where the motion out of it starts). A reversal through the dead band (a shorter stretch
+/// between opposite motions) stays 0 as in `dir`: where in it the rate crossed zero is not
+/// known better than the band. A stretch before any motion stays 0 (the contact's state is
+/// unknown). `t` [s] increases.
+pub fn held_sign(t: &[f64], rate: &[f64], dir: &[f64]) -> Vec<f64> {
+    let mut out = dir.to_vec();
+    let n = dir.len().min(rate.len()).min(t.len());
+    let mut i = 0;
+    while i < n {
+        if dir[i] != 0.0 || i == 0 {
+            i += 1;
+            continue;
+        }
+        let (a, into) = (i, dir[i - 1]);
+        while i < n && dir[i] == 0.0 {
+            i += 1;
+        }
+        if into == 0.0 {
+            continue;
+        }
+        let out_of = if i < n { dir[i] } else { into };
+        if out_of == into {
+            out[a..i].fill(into);
+            continue;
+        }
+        if t[i - 1] - t[a] < HOLD_S {
+            continue;
+        }
+        let mut turn = i;
+        while turn > a && rate[turn - 1] * out_of > 0.0 {
+            turn -= 1;
+        }
+        out[a..turn].fill(into);
+        out[turn..i].fill(out_of);
+    }
+    out
+}
+
 /// The stop operator of half-width `r` (an elastic–perfectly-plastic element, a Jenkins
 /// element): it follows increments of `x` but stays within ±r, starting at 0. The play
 /// operator (backlash of total width 2r) is `x − stop`.
@@ -601,6 +649,26 @@ mod tests {
         assert_eq!(
             local_rates(&t, &x, 0.04).1,
             local_rates_of_degree(&t, &x, 0.04, 2).1
+        );
+    }
+
+    #[test]
+    fn held_sign_keeps_the_entering_direction_through_a_hold_and_turns_where_the_motion_out_starts()
+    {
+        // At 10 Hz: rest, a push up, a hold of 0.7 s (its rate exactly 0, then noise), the
+        // motion out of it down, a reversal up through the dead band in two samples, and a hold at
+        // the run's end.
+        let rate = [
+            0.0, 0.0, 1.0, 1.0, 0.0, 0.01, -0.01, 0.01, -0.02, -0.03, -1.0, -0.02, 0.02, 1.0, 0.0,
+            0.0,
+        ];
+        let t: Vec<f64> = (0..rate.len()).map(|k| 0.1 * k as f64).collect();
+        let dir = rate_sign(&rate, 0.05);
+        assert_eq!(
+            held_sign(&t, &rate, &dir),
+            vec![
+                0.0, 0.0, 1.0, 1.0, 1.0, 1.0, 1.0, 1.0, -1.0, -1.0, -1.0, 0.0, 0.0, 1.0, 1.0, 1.0
+            ]
         );
     }
 
