@@ -6,7 +6,8 @@ import sys
 
 SHORT = {
     "hysteresis": lambda p: f"hysteresis (±{p['loop_half_height_nm']:.2f} N·m, {p['operators']:.0f} stops)",
-    "coulomb_friction": lambda p: f"coulomb_friction ({p['friction_nm']:.2f} N·m)",
+    "coulomb_friction": lambda p: f"coulomb_friction ({p['friction_nm']:.2f} N·m"
+    + (", held at rest)" if p.get("held_at_rest") == 1 else ")"),
     "viscous_friction": lambda p: f"viscous_friction ({p['damping_nms_per_rad']:.3g} N·m·s/rad)",
     "backlash": lambda p: f"backlash ({p['width_rad'] * 1e3:.2f} mrad)",
     "hard_stop": lambda p: "hard_stop (from "

@@ -202,6 +202,9 @@ pub struct Case {
     pub noise_tau_ms: f64,
     /// The multi-sine's highest frequency [Hz] (0: the plant's, [`PlantParams`]).
     pub f_max: f64,
+    /// Dry friction keeps its force where the motion stops (a stuck contact: a bristle or
+    /// elastoplastic model) instead of releasing it (FRICTION=held sets it for stress runs).
+    pub held_friction: bool,
     pub seed: u64,
 }
 
@@ -234,6 +237,11 @@ fn linear_ramps() -> bool {
 /// sensor's filter) instead of a pure delay δ (stress runs).
 fn lowpass_lags() -> bool {
     std::env::var("LAG").is_ok_and(|v| v == "lowpass")
+}
+
+/// FRICTION=held: every case's dry friction held where the motion stops (stress runs).
+fn held_friction() -> bool {
+    std::env::var("FRICTION").is_ok_and(|v| v == "held")
 }
 
 /// The imposed angle and its first two derivatives at time t, from a motion's parameters.
@@ -509,6 +517,7 @@ pub fn generate(c: &Case, variant: u64) -> Data {
         0.0
     };
     let n_fine = n_fine + (lead * fine) as usize;
+    let mut last_sign = 0.0;
     let mut tau_fine = Vec::with_capacity(n_fine);
     let mut x_fine = Vec::with_capacity(n_fine);
     for k in 0..n_fine {
@@ -547,7 +556,14 @@ pub fn generate(c: &Case, variant: u64) -> Data {
             Some(Inject::HardStop) => {
                 tau + 4.0 * (peak / amplitude) * ((xs.abs() - size).max(0.0) * xs.signum())
             }
-            Some(Inject::Coulomb) => tau + size * if v.abs() > 1e-6 { v.signum() } else { 0.0 },
+            Some(Inject::Coulomb) => {
+                if v.abs() > 1e-6 {
+                    last_sign = v.signum();
+                } else if !(c.held_friction || held_friction()) {
+                    last_sign = 0.0;
+                }
+                tau + size * last_sign
+            }
             Some(Inject::Viscous) => tau + size / rate_rms * v,
             Some(Inject::Gravity) => tau + size * (x + q0).sin(),
             Some(Inject::Ripple) => tau + size * (TAU * x / ripple_period + ripple_phase).sin(),
