@@ -754,7 +754,8 @@ fn table_over_many_seeds() {
     // engages earlier), NOISE_SCALE the torque noise, DURATION_S the runs' length, and the
     // plants' own parameters move with AMPLITUDE_SCALE, K_LINEAR, PIVOT_MM, BW_SHARE, BW_YIELD,
     // BW_N, BW_GAMMA, INERTIA, DAMPING, COUNTS and F_MAX (`plants::PlantParams`), the torque
-    // noise's colour with NOISE_TAU_MS (a sensor's low-pass, same rms). MIN_GAIN
+    // noise's colour with NOISE_TAU_MS (a sensor's low-pass, same rms), dry friction held at
+    // rest with FRICTION=held (else released). MIN_GAIN
     // overrides identify's smallest validation gain (default 5 %), RATE_WINDOW fixes the rates'
     // half-window [s] (else identify chooses it).
     println!(
