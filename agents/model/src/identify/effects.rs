@@ -134,8 +134,13 @@ impl Place {
     }
 }
 
+/// Dry friction's shape when the force is held where the motion stops (a stuck contact keeps
+/// it); NaN is the other shape, the force released there.
+pub(crate) const FRICTION_HELD: f64 = 1.0;
+
 /// One effect with its shape fixed: a delay [s], a gap or stop [rad], a jump time [s] (NaN:
-/// a constant offset), a period [rad], a loop's initial state (−1, 0, +1); NaN when none.
+/// a constant offset), a period [rad], a loop's initial state (−1, 0, +1), dry friction
+/// released (NaN) or held ([`FRICTION_HELD`]) at rest; NaN when none.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Shaped {
     pub effect: Effect,
@@ -227,8 +232,9 @@ impl Shaped {
                     )
                 })
                 .collect(),
-            // Shape 1: the force held where the motion stops; else released there.
-            Effect::CoulombFriction if r == 1.0 => vec![(s.dir_held.clone(), Bound::NonNegative)],
+            Effect::CoulombFriction if r == FRICTION_HELD => {
+                vec![(s.dir_held.clone(), Bound::NonNegative)]
+            }
             Effect::CoulombFriction => vec![(s.dir.clone(), Bound::NonNegative)],
             Effect::ViscousFriction => vec![(s.xdot.clone(), Bound::NonNegative)],
             // The live stop's own torque at unit rate on both sides.
@@ -398,7 +404,7 @@ impl Shaped {
             ],
             Effect::CoulombFriction => vec![
                 ("friction_nm", c(0)),
-                ("held_at_rest", f64::from(self.shape == 1.0)),
+                ("held_at_rest", f64::from(self.shape == FRICTION_HELD)),
             ],
             Effect::ViscousFriction => vec![("damping_nms_per_rad", c(0))],
             Effect::HardStop if self.symmetric => vec![

@@ -18,7 +18,7 @@
 //! structure (a ripple, a drift); counted as N_eff they must explain a real share of it. The
 //! effect must also lower the validation RMSE by `min_gain`, and later the held-out error.
 
-use super::effects::{Effect, Place, Shaped};
+use super::effects::{Effect, FRICTION_HELD, Place, Shaped};
 use super::model::{
     Fitted, Signals, Transform, fit, fit_restoring_beside_on, fit_restoring_on, loop_target,
     refit_restoring,
@@ -153,9 +153,9 @@ pub(crate) fn candidates(p: &Problem, opts: &Options, dt: f64, duration: f64) ->
                 }
                 Ok(g)
             }
-            // Where the motion stops, the friction released (NaN) or held (1.0): a contact
-            // that nothing slides keeps the force it had (bristle, elastoplastic models).
-            (Effect::CoulombFriction, _) => Ok(each(e, vec![f64::NAN, 1.0])),
+            // Where the motion stops, the friction released (NaN) or held: a contact that
+            // nothing slides keeps the force it had (bristle, elastoplastic models).
+            (Effect::CoulombFriction, _) => Ok(each(e, vec![f64::NAN, FRICTION_HELD])),
             (Effect::PeriodicRipple, _) => {
                 let angle = if has_q { q_all.clone() } else { p.angle() };
                 let range = span(&angle);
