@@ -73,7 +73,8 @@ struct LatencyArgs {
     /// every servo) or a board `per-joint` (as `rig up` runs them)
     #[arg(long, value_enum, default_value_t = Boards::One)]
     boards: Boards,
-    /// Round trips timed for the raw Zenoh figure (after 500 warm-up ones)
+    /// Round trips timed for the raw Zenoh figure (after 500 warm-up ones), back to back and
+    /// then again one per tick of the rig's rate
     #[arg(long, default_value_t = 10_000)]
     pings: usize,
     /// Also time raw round trips of other payload sizes — a board message of the config's
@@ -133,7 +134,11 @@ pub fn run(args: &Args) -> Result<(), CliError> {
 
 #[derive(Debug, Serialize)]
 struct LatencyReport {
+    /// Raw round trips back to back (the next ping as soon as the echo is back) [µs].
     zenoh_rtt_us: LatencySummary,
+    /// The same round trips, one started on each tick of the rig's rate [µs]: both sessions
+    /// sleep between messages as the rig's do, so every hop wakes a sleeping thread.
+    zenoh_rtt_paced_us: LatencySummary,
     rig_latency_us: LatencySummary,
     /// Worst rig latency seen [µs].
     rig_latency_max_us: u64,
@@ -204,8 +209,14 @@ fn zerr<E: Into<zenoh::Error>>(e: E) -> CliError {
     CliError::Network(rig_runtime::zenoh_err(e))
 }
 
-/// Raw round trips between two Zenoh sessions on loopback, blocking API, `pings` timed.
-fn zenoh_rtt(cfg: &RigConfig, pings: usize, payload: Vec<u8>) -> Result<Vec<u64>, CliError> {
+/// Raw round trips between two Zenoh sessions on loopback, blocking API, `pings` timed: back
+/// to back, or with `pace` each started on its own tick (`start + i·pace`).
+fn zenoh_rtt(
+    cfg: &RigConfig,
+    pings: usize,
+    payload: Vec<u8>,
+    pace: Option<Duration>,
+) -> Result<Vec<u64>, CliError> {
     // Plain TCP on loopback between two bare sessions: the transport's own figure.
     let hub = free_loopback_endpoint(false)?;
     let bare = rig_config::ZenohConfig {
@@ -266,7 +277,14 @@ fn zenoh_rtt(cfg: &RigConfig, pings: usize, payload: Vec<u8>) -> Result<Vec<u64>
     }
     while replies.try_recv().map_err(zerr)?.is_some() {}
     let mut rtt = Vec::with_capacity(pings);
+    let start = Instant::now();
     for i in 0..pings + 500 {
+        if let Some(period) = pace {
+            let due = start + period * i as u32;
+            if let Some(wait) = due.checked_duration_since(Instant::now()) {
+                std::thread::sleep(wait);
+            }
+        }
         let t0 = Instant::now();
         ping.put(payload.clone()).wait().map_err(zerr)?;
         match replies.recv_timeout(Duration::from_secs(1)).map_err(zerr)? {
@@ -442,12 +460,16 @@ fn latency(a: &LatencyArgs) -> Result<(), CliError> {
         cfg.rate_hz,
         duration.as_secs_f64()
     );
-    let rtt = zenoh_rtt(&cfg, a.pings, payload)?;
+    let rtt = zenoh_rtt(&cfg, a.pings, payload.clone(), None)?;
+    // The same round trips one per tick of the rig's rate: both sessions sleep between
+    // messages, as the agents and the estimator host do.
+    let tick = Duration::from_secs_f64(1.0 / cfg.rate_hz);
+    let paced = zenoh_rtt(&cfg, a.pings, payload, Some(tick))?;
     let mut sweep = Vec::new();
     if a.sweep {
         for bytes in [board, vec![0x5a; 1024], vec![0x5a; 64 * 1024]] {
             let size = bytes.len();
-            let rtt = zenoh_rtt(&cfg, a.pings, bytes)?;
+            let rtt = zenoh_rtt(&cfg, a.pings, bytes, None)?;
             sweep.push(SweepPoint {
                 payload_bytes: size,
                 zenoh_rtt_us: LatencySummary::of(rtt),
@@ -464,6 +486,7 @@ fn latency(a: &LatencyArgs) -> Result<(), CliError> {
     let received = r.estimator.core.samples;
     let report = LatencyReport {
         zenoh_rtt_us: LatencySummary::of(rtt),
+        zenoh_rtt_paced_us: LatencySummary::of(paced),
         rig_latency_us: r.estimator.latency_us,
         rig_latency_max_us: r.estimator.latency_us.max,
         rig_all_published_us: r.estimator.all_published_us,
@@ -487,6 +510,10 @@ fn latency(a: &LatencyArgs) -> Result<(), CliError> {
             report.zenoh_rtt_us.p50, report.zenoh_rtt_us.p99
         );
         println!(
+            "  one per tick ({:.0} Hz)   p50 {:>6} µs   p99 {:>6} µs",
+            report.rate_hz, report.zenoh_rtt_paced_us.p50, report.zenoh_rtt_paced_us.p99
+        );
+        println!(
             "rig sample→estimate       p50 {:>6} µs   p99 {:>6} µs   max {} µs",
             report.rig_latency_us.p50, report.rig_latency_us.p99, report.rig_latency_max_us
         );
@@ -501,6 +528,10 @@ fn latency(a: &LatencyArgs) -> Result<(), CliError> {
         println!(
             "rig p50 − half round trip {:>+6.0} µs (target ≤ +15 µs); p99 target ≤ 250 µs",
             report.rig_latency_us.p50 as f64 - half
+        );
+        println!(
+            "rig p50 − half paced trip {:>+6.0} µs",
+            report.rig_latency_us.p50 as f64 - report.zenoh_rtt_paced_us.p50 as f64 / 2.0
         );
         println!(
             "samples sent {}, lost {}; {} estimates observed; {} ticks skipped by the agents",
