@@ -7,7 +7,9 @@ import sys
 SHORT = {
     "hysteresis": lambda p: f"hysteresis (±{p['loop_half_height_nm']:.2f} N·m, {p['operators']:.0f} stops)",
     "coulomb_friction": lambda p: f"coulomb_friction ({p['friction_nm']:.2f} N·m"
-    + (", held at rest)" if p.get("held_at_rest") == 1 else ")"),
+    + (", held at rest" if p.get("held_at_rest") == 1 else "")
+    + (f", built up over {p['builds_over_rad_per_s'] * 1e3:.3g} mrad/s" if p.get("builds_over_rad_per_s", 0) > 0 else "")
+    + ")",
     "viscous_friction": lambda p: f"viscous_friction ({p['damping_nms_per_rad']:.3g} N·m·s/rad)",
     "backlash": lambda p: f"backlash ({p['width_rad'] * 1e3:.2f} mrad)",
     "hard_stop": lambda p: "hard_stop (from "

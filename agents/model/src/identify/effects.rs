@@ -73,7 +73,7 @@ impl Effect {
                 "friction in the spring or the lever: τ̂ + Σ wᵢ·s_rᵢ(x), a Prandtl–Ishlinskii sum of stop operators with wᵢ ≥ 0 (loading above unloading: it dissipates)"
             }
             Effect::CoulombFriction => {
-                "dry friction where the part moves: + F_c·sgn(ẋ), F_c ≥ 0, the direction from a centred rate with a dead band; where the motion stops the force is released (0) or held (a stuck contact keeps it: held_at_rest = 1), whichever the data shows"
+                "dry friction where the part moves: + F_c·sgn(ẋ), F_c ≥ 0, the direction from a centred rate with a dead band; where the motion stops the force is released (0) or held (a stuck contact keeps it: held_at_rest = 1); or built up over a small speed, + F_c·tanh(ẋ/v_s) (builds_over_rad_per_s = v_s), whichever the data shows"
             }
             Effect::ViscousFriction => "viscous friction where the part moves: + b·ẋ, b ≥ 0",
             Effect::Backlash => {
@@ -135,12 +135,15 @@ impl Place {
 }
 
 /// Dry friction's shape when the force is held where the motion stops (a stuck contact keeps
-/// it); NaN is the other shape, the force released there.
-pub(crate) const FRICTION_HELD: f64 = 1.0;
+/// it). NaN is the force released there, F_c·sgn(ẋ); a positive shape is a speed v_s [rad/s]
+/// over which the force builds up, F_c·tanh(ẋ/v_s) (a contact that slides a little before it
+/// slips: a lubricated bearing, a bristle model's steady state).
+pub(crate) const FRICTION_HELD: f64 = -1.0;
 
 /// One effect with its shape fixed: a delay [s], a gap or stop [rad], a jump time [s] (NaN:
 /// a constant offset), a period [rad], a loop's initial state (−1, 0, +1), dry friction
-/// released (NaN) or held ([`FRICTION_HELD`]) at rest; NaN when none.
+/// released (NaN) or held ([`FRICTION_HELD`]) at rest or built up over a speed [rad/s]; NaN
+/// when none.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Shaped {
     pub effect: Effect,
@@ -235,6 +238,10 @@ impl Shaped {
             Effect::CoulombFriction if r == FRICTION_HELD => {
                 vec![(s.dir_held.clone(), Bound::NonNegative)]
             }
+            Effect::CoulombFriction if r > 0.0 => vec![(
+                s.sign_rate.iter().map(|v| (v / r).tanh()).collect(),
+                Bound::NonNegative,
+            )],
             Effect::CoulombFriction => vec![(s.dir.clone(), Bound::NonNegative)],
             Effect::ViscousFriction => vec![(s.xdot.clone(), Bound::NonNegative)],
             // The live stop's own torque at unit rate on both sides.
@@ -405,6 +412,8 @@ impl Shaped {
             Effect::CoulombFriction => vec![
                 ("friction_nm", c(0)),
                 ("held_at_rest", f64::from(self.shape == FRICTION_HELD)),
+                // 0: the force is all there at any speed the dead band lets through.
+                ("builds_over_rad_per_s", self.shape.max(0.0)),
             ],
             Effect::ViscousFriction => vec![("damping_nms_per_rad", c(0))],
             Effect::HardStop if self.symmetric => vec![

@@ -73,6 +73,8 @@ pub struct Signals {
     /// The direction a stuck contact's friction keeps: `dir` with its still stretches given
     /// the direction that entered them ([`signals::held_sign`]).
     pub dir_held: Vec<f64>,
+    /// The rate whose sign is `dir` [rad/s] (the weak form's own rates on the link equation).
+    pub sign_rate: Vec<f64>,
     /// Pivot position [m] (0 where absent).
     pub d: Vec<f64>,
     /// Link angle, when known.
@@ -145,6 +147,7 @@ impl Problem {
             xddot: vec![],
             dir: vec![],
             dir_held: vec![],
+            sign_rate: vec![],
             d: vec![],
             q: None,
             angle: vec![],
@@ -181,6 +184,7 @@ impl Problem {
             let dir = signals::rate_sign(rate, self.still());
             s.dir_held.extend(signals::held_sign(&r.t, rate, &dir));
             s.dir.extend(dir);
+            s.sign_rate.extend_from_slice(rate);
             let d =
                 r.d.as_ref()
                     .map_or(vec![0.0; n], |d| signals::shifted(&r.t, d, tr.delay));

@@ -497,6 +497,21 @@ impl Problem {
         if lo.is_finite() { (lo, hi) } else { (0.0, 0.0) }
     }
 
+    /// The rms of the rate whose sign is the direction of motion, over the fit runs [rad/s]
+    /// (the weak form's own rates on the link equation).
+    pub fn fit_rate_rms(&self) -> f64 {
+        let (mut sum, mut n) = (0.0, 0usize);
+        for k in 0..self.fit_runs.min(self.rates.len()) {
+            let v = match self.sign_rates.get(k) {
+                Some(v) if self.weak() => v,
+                _ => &self.rates[k].0,
+            };
+            sum += v.iter().map(|v| v * v).sum::<f64>();
+            n += v.len();
+        }
+        if n == 0 { 0.0 } else { (sum / n as f64).sqrt() }
+    }
+
     /// Contiguous stretches of `rows` within runs, as ranges into `rows`.
     pub fn stretches(&self, rows: &[usize]) -> Vec<(usize, usize)> {
         let run_of = |i: usize| self.bounds.iter().position(|&(a, b)| i >= a && i < b);

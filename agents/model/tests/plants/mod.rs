@@ -202,10 +202,22 @@ pub struct Case {
     pub noise_tau_ms: f64,
     /// The multi-sine's highest frequency [Hz] (0: the plant's, [`PlantParams`]).
     pub f_max: f64,
-    /// Dry friction keeps its force where the motion stops (a stuck contact: a bristle or
-    /// elastoplastic model) instead of releasing it (FRICTION=held sets it for stress runs).
-    pub held_friction: bool,
+    /// Dry friction's shape (FRICTION=held or tanh sets it for stress runs).
+    pub friction: DryFriction,
     pub seed: u64,
+}
+
+/// How dry friction F_c behaves where the motion slows and stops.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum DryFriction {
+    /// F_c·sgn(ẋ), sgn 0 = 0: released the moment the motion stops (the simulator's).
+    Released,
+    /// Kept where the motion stops until it moves again (a stuck contact: a bristle or
+    /// elastoplastic model).
+    Held,
+    /// F_c·tanh(ẋ/v_s), built up over a speed v_s given as a fraction of the plant's rms rate
+    /// scale ([`viscous_rate_scale`]): a contact that slides a little before it slips.
+    Smooth(f64),
 }
 
 /// A generated run in SI units: what `rig identify` reads, and the injected size.
@@ -239,9 +251,14 @@ fn lowpass_lags() -> bool {
     std::env::var("LAG").is_ok_and(|v| v == "lowpass")
 }
 
-/// FRICTION=held: every case's dry friction held where the motion stops (stress runs).
-fn held_friction() -> bool {
-    std::env::var("FRICTION").is_ok_and(|v| v == "held")
+/// FRICTION=held: every case's dry friction held where the motion stops; FRICTION=tanh: built
+/// up over TANH_VS (default 0.05) of the rms rate scale (stress runs). Else the case's own.
+fn friction(c: &Case) -> DryFriction {
+    match std::env::var("FRICTION").as_deref() {
+        Ok("held") => DryFriction::Held,
+        Ok("tanh") => DryFriction::Smooth(env_f64("TANH_VS", 0.05)),
+        _ => c.friction,
+    }
 }
 
 /// The imposed angle and its first two derivatives at time t, from a motion's parameters.
@@ -556,14 +573,17 @@ pub fn generate(c: &Case, variant: u64) -> Data {
             Some(Inject::HardStop) => {
                 tau + 4.0 * (peak / amplitude) * ((xs.abs() - size).max(0.0) * xs.signum())
             }
-            Some(Inject::Coulomb) => {
-                if v.abs() > 1e-6 {
-                    last_sign = v.signum();
-                } else if !(c.held_friction || held_friction()) {
-                    last_sign = 0.0;
+            Some(Inject::Coulomb) => match friction(c) {
+                DryFriction::Smooth(frac) => tau + size * (v / (frac * rate_rms)).tanh(),
+                shape => {
+                    if v.abs() > 1e-6 {
+                        last_sign = v.signum();
+                    } else if shape == DryFriction::Released {
+                        last_sign = 0.0;
+                    }
+                    tau + size * last_sign
                 }
-                tau + size * last_sign
-            }
+            },
             Some(Inject::Viscous) => tau + size / rate_rms * v,
             Some(Inject::Gravity) => tau + size * (x + q0).sin(),
             Some(Inject::Ripple) => tau + size * (TAU * x / ripple_period + ripple_phase).sin(),
