@@ -176,9 +176,7 @@ impl Problem {
             );
             // The weak form's direction of motion is from its own rates, not the smoothed q̇.
             let weak_sign = self
-                .sign_rates
-                .get(k)
-                .filter(|_| self.weak())
+                .weak_sign_rate(k)
                 .map(|v| signals::shifted(&r.t, v, tr.delay));
             let rate = weak_sign.as_ref().unwrap_or(&v);
             let dir = signals::rate_sign(rate, self.still());

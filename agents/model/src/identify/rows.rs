@@ -497,15 +497,18 @@ impl Problem {
         if lo.is_finite() { (lo, hi) } else { (0.0, 0.0) }
     }
 
+    /// Run `k`'s rate for the direction of motion where it is not the angle's own rate: the
+    /// weak form's, from a narrower window than its smoothed q̇ ([`Self::sign_rates`]).
+    pub fn weak_sign_rate(&self, k: usize) -> Option<&Vec<f64>> {
+        self.sign_rates.get(k).filter(|_| self.weak())
+    }
+
     /// The rms of the rate whose sign is the direction of motion, over the fit runs [rad/s]
     /// (the weak form's own rates on the link equation).
     pub fn fit_rate_rms(&self) -> f64 {
         let (mut sum, mut n) = (0.0, 0usize);
         for k in 0..self.fit_runs.min(self.rates.len()) {
-            let v = match self.sign_rates.get(k) {
-                Some(v) if self.weak() => v,
-                _ => &self.rates[k].0,
-            };
+            let v = self.weak_sign_rate(k).unwrap_or(&self.rates[k].0);
             sum += v.iter().map(|v| v * v).sum::<f64>();
             n += v.len();
         }

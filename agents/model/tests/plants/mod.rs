@@ -523,6 +523,7 @@ pub fn generate(c: &Case, variant: u64) -> Data {
     let ripple_phase = size_rng.range(0.0, TAU);
     let q0 = size_rng.range(-0.5, 0.5);
     let rate_rms = viscous_rate_scale(c);
+    let friction = friction(c);
     let mut bw = BoucWen::new(pp.bw_yield * amplitude);
     let mut bw_prev_x = 0.0;
     // A lagging sensor reads, at the start of a run, the motion before it: the plant is run
@@ -573,7 +574,7 @@ pub fn generate(c: &Case, variant: u64) -> Data {
             Some(Inject::HardStop) => {
                 tau + 4.0 * (peak / amplitude) * ((xs.abs() - size).max(0.0) * xs.signum())
             }
-            Some(Inject::Coulomb) => match friction(c) {
+            Some(Inject::Coulomb) => match friction {
                 DryFriction::Smooth(frac) => tau + size * (v / (frac * rate_rms)).tanh(),
                 shape => {
                     if v.abs() > 1e-6 {
