@@ -585,6 +585,19 @@ fn bench_latency_and_throughput_report_consistent_figures() {
     let paced = &v["zenoh_rtt_paced_us"];
     assert_eq!(u(paced, &["count"]), 300, "{v}");
     assert!(0 < u(paced, &["p50"]) && u(paced, &["p50"]) < 1000, "{v}");
+    // One way of each trip, read on the rig's clock as its transport part is: one of every
+    // timed ping, and a part of its round trip (a ping reaches the echo before the echo
+    // returns).
+    for (one_way, trip) in [
+        ("zenoh_one_way_us", "zenoh_rtt_us"),
+        ("zenoh_one_way_paced_us", "zenoh_rtt_paced_us"),
+    ] {
+        assert_eq!(u(&v, &[one_way, "count"]), 300, "{v}");
+        assert!(
+            u(&v, &[one_way, "p50"]) < u(&v, &[trip, "p50"]),
+            "{one_way} against {trip}: {v}"
+        );
+    }
     let (lat50, lat99) = (
         u(&v, &["rig_latency_us", "p50"]),
         u(&v, &["rig_latency_us", "p99"]),

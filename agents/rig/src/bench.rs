@@ -139,6 +139,11 @@ struct LatencyReport {
     /// The same round trips, one started on each tick of the rig's rate [µs]: both sessions
     /// sleep between messages as the rig's do, so every hop wakes a sleeping thread.
     zenoh_rtt_paced_us: LatencySummary,
+    /// One way of the back-to-back trips: the ping's Zenoh timestamp to the echo callback's
+    /// start [µs], measured as `rig_transport_us` is.
+    zenoh_one_way_us: LatencySummary,
+    /// One way of the trips one per tick [µs]: the raw figure beside `rig_transport_us`.
+    zenoh_one_way_paced_us: LatencySummary,
     rig_latency_us: LatencySummary,
     /// Worst rig latency seen [µs].
     rig_latency_max_us: u64,
@@ -209,6 +214,15 @@ fn zerr<E: Into<zenoh::Error>>(e: E) -> CliError {
     CliError::Network(rig_runtime::zenoh_err(e))
 }
 
+/// What [`zenoh_rtt`] timed, one entry per timed ping [µs].
+struct Trips {
+    /// The ping's put to its echo's arrival back, on this thread's monotonic clock.
+    rtt: Vec<u64>,
+    /// The ping's Zenoh timestamp (taken in its put) to the echo callback's start: one way,
+    /// measured exactly as the rig's transport part (`rig_transport_us`) is.
+    one_way: Vec<u64>,
+}
+
 /// Raw round trips between two Zenoh sessions on loopback, blocking API, `pings` timed: back
 /// to back, or with `pace` each started on its own tick (`start + i·pace`).
 fn zenoh_rtt(
@@ -216,7 +230,7 @@ fn zenoh_rtt(
     pings: usize,
     payload: Vec<u8>,
     pace: Option<Duration>,
-) -> Result<Vec<u64>, CliError> {
+) -> Result<Trips, CliError> {
     // Plain TCP on loopback between two bare sessions: the transport's own figure.
     let hub = free_loopback_endpoint(false)?;
     let bare = rig_config::ZenohConfig {
@@ -245,10 +259,18 @@ fn zenoh_rtt(
         .congestion_control(zenoh::qos::CongestionControl::Block)
         .wait()
         .map_err(zerr)?;
+    // Every ping's one-way time, read where the rig's estimator reads its samples' (the
+    // callback's start against the Zenoh timestamp), the warm-up ones first.
+    let one_way = Arc::new(std::sync::Mutex::new(Vec::with_capacity(pings + 600)));
+    let arrivals = one_way.clone();
     let _echo = b
         .declare_subscriber(ping_key.clone())
         .callback(move |s| {
+            let now = now_ns();
             let _ = pong.put(s.payload().clone()).wait();
+            if let (Some(t), Ok(mut v)) = (s.timestamp(), arrivals.lock()) {
+                v.push(now.saturating_sub(t.get_time().as_nanos()) / 1000);
+            }
         })
         .wait()
         .map_err(zerr)?;
@@ -300,7 +322,12 @@ fn zenoh_rtt(
     drop(ping);
     let _ = a.close().wait();
     let _ = b.close().wait();
-    Ok(rtt)
+    // Each timed ping had its echo, so the last `pings` arrivals are the timed ones.
+    let one_way = one_way
+        .lock()
+        .map(|v| v[v.len().saturating_sub(pings)..].to_vec())
+        .unwrap_or_default();
+    Ok(Trips { rtt, one_way })
 }
 
 /// What a rig run produced.
@@ -460,7 +487,7 @@ fn latency(a: &LatencyArgs) -> Result<(), CliError> {
         cfg.rate_hz,
         duration.as_secs_f64()
     );
-    let rtt = zenoh_rtt(&cfg, a.pings, payload.clone(), None)?;
+    let back_to_back = zenoh_rtt(&cfg, a.pings, payload.clone(), None)?;
     // The same round trips one per tick of the rig's rate: both sessions sleep between
     // messages, as the agents and the estimator host do.
     let tick = Duration::from_secs_f64(1.0 / cfg.rate_hz);
@@ -469,10 +496,10 @@ fn latency(a: &LatencyArgs) -> Result<(), CliError> {
     if a.sweep {
         for bytes in [board, vec![0x5a; 1024], vec![0x5a; 64 * 1024]] {
             let size = bytes.len();
-            let rtt = zenoh_rtt(&cfg, a.pings, bytes, None)?;
+            let trips = zenoh_rtt(&cfg, a.pings, bytes, None)?;
             sweep.push(SweepPoint {
                 payload_bytes: size,
-                zenoh_rtt_us: LatencySummary::of(rtt),
+                zenoh_rtt_us: LatencySummary::of(trips.rtt),
             });
         }
     }
@@ -485,8 +512,10 @@ fn latency(a: &LatencyArgs) -> Result<(), CliError> {
     let sent: u64 = r.agents.iter().map(|a| a.samples).sum();
     let received = r.estimator.core.samples;
     let report = LatencyReport {
-        zenoh_rtt_us: LatencySummary::of(rtt),
-        zenoh_rtt_paced_us: LatencySummary::of(paced),
+        zenoh_rtt_us: LatencySummary::of(back_to_back.rtt),
+        zenoh_rtt_paced_us: LatencySummary::of(paced.rtt),
+        zenoh_one_way_us: LatencySummary::of(back_to_back.one_way),
+        zenoh_one_way_paced_us: LatencySummary::of(paced.one_way),
         rig_latency_us: r.estimator.latency_us,
         rig_latency_max_us: r.estimator.latency_us.max,
         rig_all_published_us: r.estimator.all_published_us,
@@ -514,12 +543,21 @@ fn latency(a: &LatencyArgs) -> Result<(), CliError> {
             report.rate_hz, report.zenoh_rtt_paced_us.p50, report.zenoh_rtt_paced_us.p99
         );
         println!(
+            "raw one way (timestamp)   p50 {:>6} µs   p99 {:>6} µs   one per tick: p50 {} µs, p99 {} µs",
+            report.zenoh_one_way_us.p50,
+            report.zenoh_one_way_us.p99,
+            report.zenoh_one_way_paced_us.p50,
+            report.zenoh_one_way_paced_us.p99
+        );
+        println!(
             "rig sample→estimate       p50 {:>6} µs   p99 {:>6} µs   max {} µs",
             report.rig_latency_us.p50, report.rig_latency_us.p99, report.rig_latency_max_us
         );
         println!(
-            "  of which transport      p50 {:>6} µs   p99 {:>6} µs",
-            report.rig_transport_us.p50, report.rig_transport_us.p99
+            "  of which transport      p50 {:>6} µs   p99 {:>6} µs   ({:+} µs over the raw one way per tick)",
+            report.rig_transport_us.p50,
+            report.rig_transport_us.p99,
+            report.rig_transport_us.p50 as i64 - report.zenoh_one_way_paced_us.p50 as i64
         );
         println!(
             "  every estimate out      p50 {:>6} µs   p99 {:>6} µs",
