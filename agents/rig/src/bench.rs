@@ -44,6 +44,11 @@ pub struct Args {
 enum What {
     /// Raw Zenoh round trip on this machine, then the rig's sample→estimate latency at the
     /// config's joints and rate (default: the parallel example, 4 joints × 1 kHz).
+    ///
+    /// The raw trips run back to back, then one per tick of the rig's rate (both sessions
+    /// sleep between messages, as the rig's do). Each trip's one way — the ping's Zenoh
+    /// timestamp to the echo's callback — is read exactly as the rig's transport part is, so
+    /// the two compare on one clock.
     Latency(LatencyArgs),
     /// N simulated joints at the rate on one board against one estimator host.
     Throughput(ThroughputArgs),
