@@ -122,7 +122,7 @@ pub async fn run(
             }
             g = goals.recv_async() => {
                 let Ok(g) = g else { break };
-                let stamp_ns = g.timestamp().map(|t| t.get_time().as_nanos());
+                let stamp_ns = rig_runtime::published_ns(&g);
                 match decode::<AllocationRequest>(&g.payload().to_bytes()) {
                     Ok(req) => {
                         report.goals += 1;

@@ -159,7 +159,7 @@ fn on_sample(state: &Mutex<State>, pubs: &Publishers, s: &zenoh::sample::Sample,
     // `rig/<rig>/joint/<j>/sample` or `rig/<rig>/board/<b>/sample`: the payload must be
     // joint <j>'s, or of joints board <b> runs.
     let key_name = s.key_expr().as_str().rsplit('/').nth(1).unwrap_or("");
-    let published_ns = s.timestamp().map(|t| t.get_time().as_nanos());
+    let published_ns = rig_runtime::published_ns(s);
     let now = now_ns();
     let outputs = {
         let mut st = lock(state);

@@ -27,7 +27,7 @@ use rig_joint::agent::{AgentReport, BackendKind};
 use rig_protocol::{BoardSample, JointSample, encode};
 use rig_runtime::cli::positive_seconds;
 use rig_runtime::zenoh::{self, Wait};
-use rig_runtime::{NetOverrides, now_ns, tokio_runtime, zenoh_config};
+use rig_runtime::{NetOverrides, now_ns, published_ns, tokio_runtime, zenoh_config};
 use serde::Serialize;
 
 use crate::error::CliError;
@@ -273,8 +273,8 @@ fn zenoh_rtt(
         .callback(move |s| {
             let now = now_ns();
             let _ = pong.put(s.payload().clone()).wait();
-            if let (Some(t), Ok(mut v)) = (s.timestamp(), arrivals.lock()) {
-                v.push(now.saturating_sub(t.get_time().as_nanos()) / 1000);
+            if let (Some(t), Ok(mut v)) = (published_ns(&s), arrivals.lock()) {
+                v.push(now.saturating_sub(t) / 1000);
             }
         })
         .wait()

@@ -217,12 +217,7 @@ pub fn record(a: &RecordArgs) -> Result<(), CliError> {
                 s = rx.recv() => {
                     let Some(s) = s else { break };
                     let log_time = now_ns();
-                    let publish_time = s.timestamp().map_or(log_time, |t| {
-                        t.get_time()
-                            .to_system_time()
-                            .duration_since(std::time::UNIX_EPOCH)
-                            .map_or(log_time, |d| d.as_nanos() as u64)
-                    });
+                    let publish_time = rig_runtime::published_ns(&s).unwrap_or(log_time);
                     w.write(s.key_expr().as_str(), &s.payload().to_bytes(), log_time, publish_time)?;
                 }
             }

@@ -130,6 +130,13 @@ impl<F: std::future::Future<Output = ()>> Ticks<F> {
     }
 }
 
+/// When `s` was published, from its Zenoh timestamp (set by the publisher's session in its
+/// put), on [`now_ns`]'s clock [ns]; None when it carries none. Every host reads a message's
+/// age, and the bench its transport time, with this one reading.
+pub fn published_ns(s: &zenoh::sample::Sample) -> Option<u64> {
+    s.timestamp().map(|t| t.get_time().as_nanos())
+}
+
 /// Nanoseconds since the UNIX epoch (the rig's acquisition clock).
 pub fn now_ns() -> u64 {
     SystemTime::now()
