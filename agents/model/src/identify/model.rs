@@ -180,7 +180,11 @@ impl Problem {
                 .map(|v| signals::shifted(&r.t, v, tr.delay));
             let rate = weak_sign.as_ref().unwrap_or(&v);
             let dir = signals::rate_sign(rate, self.still());
-            s.dir_held.extend(signals::held_sign(&r.t, rate, &dir));
+            // The fit runs' turns out of a hold are placed where their torque steps; a
+            // held-out run's by its rate alone, as the live estimator can: its error is not
+            // helped by its own torque.
+            let tau = if k < self.fit_runs { &r.tau[..] } else { &[] };
+            s.dir_held.extend(signals::held_sign(&r.t, rate, &dir, tau));
             s.dir.extend(dir);
             s.sign_rate.extend_from_slice(rate);
             let d =

@@ -177,16 +177,20 @@ pub fn rate_sign(xdot: &[f64], still: f64) -> Vec<f64> {
 /// 0.1 s at the slowest turns of the tables' motions; a test machine holds for seconds).
 pub const HOLD_S: f64 = 0.2;
 
-/// The direction a stuck contact's friction keeps: [`rate_sign`]'s `dir` with each still
-/// stretch (0) given the direction of the motion that entered it, so that dry friction holds
-/// its force where the motion stops (a bristle or elastoplastic contact: nothing slides to
-/// release it) instead of dropping to 0. Where the motion leaves a hold ([`HOLD_S`] or longer)
-/// the other way, the direction turns where the centred `rate` takes the new sign for good
-/// (where the motion out of it starts). A reversal through the dead band (a shorter stretch
-/// between opposite motions) stays 0 as in `dir`: where in it the rate crossed zero is not
-/// known better than the band. A stretch before any motion stays 0 (the contact's state is
-/// unknown). `t` [s] increases.
-pub fn held_sign(t: &[f64], rate: &[f64], dir: &[f64]) -> Vec<f64> {
+/// The direction a stuck contact's friction keeps: [`rate_sign`]'s `dir` with each still stretch
+/// (0) given the direction of the motion that entered it, so that dry friction holds its force
+/// where the motion stops (a bristle or elastoplastic contact: nothing slides to release it)
+/// instead of dropping to 0. Where the motion leaves a hold ([`HOLD_S`] or longer) the other way,
+/// the direction turns where the motion out of it starts: where the centred `rate` takes the new
+/// sign for good, or earlier, where the torque `tau` steps that way before it ([`torque_turn`]). A
+/// motion that starts from rest moves less than a count for a while: the counted angle's rate is
+/// exactly 0 there, but the contact has turned and the torque shows it. (Only before the rate's
+/// turn: after it, the motion's own torque — the spring's, the inertia's — would be taken for the
+/// step.) A reversal through the dead band (a shorter stretch between opposite motions) stays 0 as
+/// in `dir`: where in it the rate crossed zero is not known better than the band. A stretch before
+/// any motion stays 0 (the contact's state is unknown). `t` [s] increases; an empty `tau` places
+/// the turns by the rate alone.
+pub fn held_sign(t: &[f64], rate: &[f64], dir: &[f64], tau: &[f64]) -> Vec<f64> {
     let mut out = dir.to_vec();
     let n = dir.len().min(rate.len()).min(t.len());
     let mut i = 0;
@@ -214,10 +218,47 @@ pub fn held_sign(t: &[f64], rate: &[f64], dir: &[f64]) -> Vec<f64> {
         while turn > a && rate[turn - 1] * out_of > 0.0 {
             turn -= 1;
         }
+        if tau.len() >= turn {
+            turn = torque_turn(&tau[a..turn], out_of).map_or(turn, |k| a + k);
+        }
         out[a..turn].fill(into);
         out[turn..i].fill(out_of);
     }
     out
+}
+
+/// How many standard errors a torque step within a hold must reach to place a turn
+/// ([`torque_turn`]). White noise reaches 6 at one split point with probability 2·10⁻⁹, so at
+/// any of a 5000-sample hold's with less than 10⁻⁵ (the union bound).
+pub const TURN_STEP_SE: f64 = 6.0;
+
+/// Where in a hold's torque `tau` it steps the way `sign` (±1): the index k that splits it
+/// into two constant levels best (the largest between-level sum of squares), when the level
+/// after minus the level before has the sign `sign` and reaches [`TURN_STEP_SE`] of its
+/// standard error (from the scatter about the two levels). `None` where it does not.
+pub fn torque_turn(tau: &[f64], sign: f64) -> Option<usize> {
+    let n = tau.len();
+    if n < 4 {
+        return None;
+    }
+    let mean = tau.iter().sum::<f64>() / n as f64;
+    let total: f64 = tau.iter().map(|v| (v - mean).powi(2)).sum();
+    let (mut best, mut best_k, mut before) = (0.0, 0, 0.0);
+    for (k, v) in tau.iter().enumerate().take(n - 1) {
+        before += v - mean;
+        let k = k + 1;
+        // Between-level sum of squares of the split at k: n·S_k² / (k·(n − k)), S_k the
+        // centred sum of the first k.
+        let between = n as f64 * before * before / (k * (n - k)) as f64;
+        if -before * sign > 0.0 && between > best {
+            (best, best_k) = (between, k);
+        }
+    }
+    if best_k == 0 {
+        return None;
+    }
+    let scatter = (total - best).max(0.0) / (n - 2) as f64;
+    (best > TURN_STEP_SE * TURN_STEP_SE * scatter).then_some(best_k)
 }
 
 /// The stop operator of half-width `r` (an elastic–perfectly-plastic element, a Jenkins
@@ -665,11 +706,46 @@ mod tests {
         let t: Vec<f64> = (0..rate.len()).map(|k| 0.1 * k as f64).collect();
         let dir = rate_sign(&rate, 0.05);
         assert_eq!(
-            held_sign(&t, &rate, &dir),
+            held_sign(&t, &rate, &dir, &[]),
             vec![
                 0.0, 0.0, 1.0, 1.0, 1.0, 1.0, 1.0, 1.0, -1.0, -1.0, -1.0, 0.0, 0.0, 1.0, 1.0, 1.0
             ]
         );
+    }
+
+    #[test]
+    fn a_hold_turns_where_its_torque_steps_before_the_counted_rate_moves() {
+        // At 100 Hz: a push up, a hold of 1 s whose counted rate is exactly 0, the motion out
+        // of it down counted from sample 80 on. The contact turned at sample 60: the torque
+        // steps down by 0.2 there under noise of ±0.01 (a fixed pattern).
+        let n = 100;
+        let rate: Vec<f64> = (0..n)
+            .map(|k| match k {
+                0..10 => 1.0,
+                10..80 => 0.0,
+                _ => -1.0,
+            })
+            .collect();
+        let t: Vec<f64> = (0..n).map(|k| 0.01 * k as f64).collect();
+        let noise = |k: usize| 0.01 * [1.0, -1.0, 0.5, -0.5, 0.0][k % 5];
+        let tau: Vec<f64> = (0..n)
+            .map(|k| if k < 60 { 1.0 } else { 0.8 } + noise(k))
+            .collect();
+        let dir = rate_sign(&rate, 0.05);
+        let held = held_sign(&t, &rate, &dir, &tau);
+        assert_eq!(held[..60], vec![1.0; 60][..]);
+        assert_eq!(held[60..], vec![-1.0; 40][..]);
+        // By the rate alone the turn is where the count moves.
+        assert_eq!(held_sign(&t, &rate, &dir, &[])[..80], vec![1.0; 80][..]);
+        // A step the other way (the torque rising into a motion down) is not the contact's
+        // turn, nor is a step within the noise.
+        let up: Vec<f64> = tau.iter().map(|v| 2.0 - v).collect();
+        assert_eq!(held_sign(&t, &rate, &dir, &up)[..80], vec![1.0; 80][..]);
+        let small: Vec<f64> = (0..n)
+            .map(|k| if k < 60 { 1.0 } else { 0.995 } + noise(k))
+            .collect();
+        assert_eq!(held_sign(&t, &rate, &dir, &small)[..80], vec![1.0; 80][..]);
+        assert_eq!(torque_turn(&tau[10..80], -1.0), Some(50));
     }
 
     #[test]
