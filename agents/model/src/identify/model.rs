@@ -2,7 +2,7 @@
 //! columns of the added effects, with coefficients fitted by bounded least squares.
 
 use super::effects::{Effect, Place, Shaped};
-use super::rows::Problem;
+use super::rows::{Problem, Role};
 use super::signals::{self, dead_zone};
 use super::stats::{Bound, bounded_least_squares, combine, rmse};
 use super::{Declared, IdentifyError};
@@ -180,11 +180,21 @@ impl Problem {
                 .map(|v| signals::shifted(&r.t, v, tr.delay));
             let rate = weak_sign.as_ref().unwrap_or(&v);
             let dir = signals::rate_sign(rate, self.still());
-            // The fit runs' turns out of a hold are placed where their torque steps; a
-            // held-out run's by its rate alone, as the live estimator can: its error is not
-            // helped by its own torque.
-            let tau = if k < self.fit_runs { &r.tau[..] } else { &[] };
-            s.dir_held.extend(signals::held_sign(&r.t, rate, &dir, tau));
+            // Turns out of a hold are placed where the fit rows' torque steps; the held-out
+            // rows' (NaN here: a hold that reaches them is not searched) by the rate alone, as
+            // the live estimator can, so the error held out is not helped by its own torque.
+            let (start, held_run) = (self.bounds[k].0, k >= self.fit_runs);
+            let tau: Vec<f64> = (r.tau.iter().enumerate())
+                .map(|(j, &v)| {
+                    if held_run || self.role[start + j] == Role::Holdout {
+                        f64::NAN
+                    } else {
+                        v
+                    }
+                })
+                .collect();
+            s.dir_held
+                .extend(signals::held_sign(&r.t, rate, &dir, &tau));
             s.dir.extend(dir);
             s.sign_rate.extend_from_slice(rate);
             let d =

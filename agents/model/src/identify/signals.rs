@@ -189,7 +189,7 @@ pub const HOLD_S: f64 = 0.2;
 /// step.) A reversal through the dead band (a shorter stretch between opposite motions) stays 0 as
 /// in `dir`: where in it the rate crossed zero is not known better than the band. A stretch before
 /// any motion stays 0 (the contact's state is unknown). `t` [s] increases; an empty `tau` places
-/// the turns by the rate alone.
+/// the turns by the rate alone, and so does a NaN in a hold's torque (a sample not to be used).
 pub fn held_sign(t: &[f64], rate: &[f64], dir: &[f64], tau: &[f64]) -> Vec<f64> {
     let mut out = dir.to_vec();
     let n = dir.len().min(rate.len()).min(t.len());
@@ -235,10 +235,11 @@ pub const TURN_STEP_SE: f64 = 6.0;
 /// Where in a hold's torque `tau` it steps the way `sign` (±1): the index k that splits it
 /// into two constant levels best (the largest between-level sum of squares), when the level
 /// after minus the level before has the sign `sign` and reaches [`TURN_STEP_SE`] of its
-/// standard error (from the scatter about the two levels). `None` where it does not.
+/// standard error (from the scatter about the two levels). `None` where it does not, or where
+/// `tau` holds a NaN (a sample it may not use).
 pub fn torque_turn(tau: &[f64], sign: f64) -> Option<usize> {
     let n = tau.len();
-    if n < 4 {
+    if n < 4 || tau.iter().any(|v| v.is_nan()) {
         return None;
     }
     let mean = tau.iter().sum::<f64>() / n as f64;
@@ -745,6 +746,10 @@ mod tests {
             .map(|k| if k < 60 { 1.0 } else { 0.995 } + noise(k))
             .collect();
         assert_eq!(held_sign(&t, &rate, &dir, &small)[..80], vec![1.0; 80][..]);
+        // Nor is a hold whose torque may not be used (a held-out row in it: NaN).
+        let mut masked = tau.clone();
+        masked[30] = f64::NAN;
+        assert_eq!(held_sign(&t, &rate, &dir, &masked)[..80], vec![1.0; 80][..]);
         assert_eq!(torque_turn(&tau[10..80], -1.0), Some(50));
     }
 
