@@ -659,18 +659,8 @@ fn dry_friction_that_holds_its_force_where_the_motion_stops_is_named_alone_and_s
                 },
                 ..case(plant, Some(Inject::Coulomb), seed, rate_hz, noise)
             };
-            let truth = generate(&c, 0).size;
-            let id = identify_case(&c);
-            let names: Vec<&str> = id.effects.iter().map(|e| e.effect.name()).collect();
-            assert_eq!(names, ["coulomb_friction"], "{c:?}");
+            let id = dry_friction_named_alone_and_sized(&c, 0.1);
             assert_eq!(param_of(&id, "held_at_rest"), f64::from(held), "{c:?}");
-            let f = param_of(&id, "friction_nm");
-            assert!(
-                (f / truth - 1.0).abs() < 0.1,
-                "{c:?}: F_c {f} against {truth}"
-            );
-            let o = outcome_of(&c, &id);
-            assert!(o.paid_off(), "{c:?}: {o:?}");
         }
     }
 }
@@ -688,18 +678,8 @@ fn a_held_contact_turns_where_its_torque_steps_before_the_counted_angle_has_move
             friction: DryFriction::Held,
             ..case(plant, Some(Inject::Coulomb), seed, rate_hz, 0.005)
         };
-        let truth = generate(&c, 0).size;
-        let id = identify_case(&c);
-        let names: Vec<&str> = id.effects.iter().map(|e| e.effect.name()).collect();
-        assert_eq!(names, ["coulomb_friction"], "{c:?}");
+        let id = dry_friction_named_alone_and_sized(&c, 0.05);
         assert_eq!(param_of(&id, "held_at_rest"), 1.0, "{c:?}");
-        let f = param_of(&id, "friction_nm");
-        assert!(
-            (f / truth - 1.0).abs() < 0.05,
-            "{c:?}: F_c {f} against {truth}"
-        );
-        let o = outcome_of(&c, &id);
-        assert!(o.paid_off(), "{c:?}: {o:?}");
     }
 }
 
@@ -710,23 +690,22 @@ fn dry_friction_built_up_over_a_small_speed_is_named_alone_with_that_speed() {
     // left to viscous friction beside it (this linear case, and 3 of the table's 10 linear
     // seeds), or the friction was named alone at 1.7× (linear spring) and 5.5× (link) the clean
     // twin's error (medians). The linear spring at 200 Hz on a multi-sine, the link equation at
-    // 1 kHz ramp-and-hold, 0.5 % noise; the same cases with the force released at rest are
-    // still named dry friction alone.
-    for (plant, seed, rate_hz) in [(Plant::Linear, 10, 200.0), (Plant::Link, 1, 1000.0)] {
+    // 1 kHz ramp-and-hold and multi-sine, 0.5 % noise; the same cases with the force released
+    // at rest are still named dry friction alone. On the link's multi-sine (seed 8) the speed
+    // is judged on rows smoothed over ±40 ms: on the ±0.16 s the inertia's noise chose, the
+    // build-up was averaged into the sign's step, the speed did not pay, and the sign left
+    // 12.8× the clean twin's error held out.
+    for (plant, seed, rate_hz) in [
+        (Plant::Linear, 10, 200.0),
+        (Plant::Link, 1, 1000.0),
+        (Plant::Link, 8, 1000.0),
+    ] {
         for shape in [DryFriction::Smooth(0.05), DryFriction::Released] {
             let c = Case {
                 friction: shape,
                 ..case(plant, Some(Inject::Coulomb), seed, rate_hz, 0.005)
             };
-            let truth = generate(&c, 0).size;
-            let id = identify_case(&c);
-            let names: Vec<&str> = id.effects.iter().map(|e| e.effect.name()).collect();
-            assert_eq!(names, ["coulomb_friction"], "{c:?}");
-            let f = param_of(&id, "friction_nm");
-            assert!(
-                (f / truth - 1.0).abs() < 0.1,
-                "{c:?}: F_c {f} against {truth}"
-            );
+            let id = dry_friction_named_alone_and_sized(&c, 0.1);
             if let DryFriction::Smooth(frac) = shape {
                 let v_s = param_of(&id, "builds_over_rad_per_s");
                 let v_true = frac * plants::viscous_rate_scale(&c);
@@ -735,10 +714,25 @@ fn dry_friction_built_up_over_a_small_speed_is_named_alone_with_that_speed() {
                     "{c:?}: v_s {v_s} against {v_true}"
                 );
             }
-            let o = outcome_of(&c, &id);
-            assert!(o.paid_off(), "{c:?}: {o:?}");
         }
     }
+}
+
+/// Identifies `c`, whose injected effect is dry friction, and checks that it is named alone,
+/// its F_c within `tolerance` (relative) of the generator's, and that it paid off held out.
+fn dry_friction_named_alone_and_sized(c: &Case, tolerance: f64) -> Identified {
+    let truth = generate(c, 0).size;
+    let id = identify_case(c);
+    let names: Vec<&str> = id.effects.iter().map(|e| e.effect.name()).collect();
+    assert_eq!(names, ["coulomb_friction"], "{c:?}");
+    let f = param_of(&id, "friction_nm");
+    assert!(
+        (f / truth - 1.0).abs() < tolerance,
+        "{c:?}: F_c {f} against {truth}"
+    );
+    let o = outcome_of(c, &id);
+    assert!(o.paid_off(), "{c:?}: {o:?}");
+    id
 }
 
 #[test]

@@ -218,6 +218,10 @@ pub enum DryFriction {
     /// F_c·tanh(ẋ/v_s), built up over a speed v_s given as a fraction of the plant's rms rate
     /// scale ([`viscous_rate_scale`]): a contact that slides a little before it slips.
     Smooth(f64),
+    /// Released at rest, with a Stribeck peak: sgn(ẋ)·(F_c + (F_s − F_c)·exp(−(ẋ/v_s)²)),
+    /// breaking away at F_s = 1.5·F_c and falling to F_c over v_s, given as a fraction of the
+    /// plant's rms rate scale: a lubricated contact's friction at low speed.
+    Stribeck(f64),
 }
 
 /// A generated run in SI units: what `rig identify` reads, and the injected size.
@@ -252,11 +256,13 @@ fn lowpass_lags() -> bool {
 }
 
 /// FRICTION=held: every case's dry friction held where the motion stops; FRICTION=tanh: built
-/// up over TANH_VS (default 0.05) of the rms rate scale (stress runs). Else the case's own.
+/// up over TANH_VS (default 0.05) of the rms rate scale; FRICTION=stribeck: a breakaway peak
+/// falling to F_c over STRIBECK_VS (default 0.05) of it (stress runs). Else the case's own.
 fn friction(c: &Case) -> DryFriction {
     match std::env::var("FRICTION").as_deref() {
         Ok("held") => DryFriction::Held,
         Ok("tanh") => DryFriction::Smooth(env_f64("TANH_VS", 0.05)),
+        Ok("stribeck") => DryFriction::Stribeck(env_f64("STRIBECK_VS", 0.05)),
         _ => c.friction,
     }
 }
@@ -576,6 +582,11 @@ pub fn generate(c: &Case, variant: u64) -> Data {
             }
             Some(Inject::Coulomb) => match friction {
                 DryFriction::Smooth(frac) => tau + size * (v / (frac * rate_rms)).tanh(),
+                DryFriction::Stribeck(frac) if v.abs() > 1e-6 => {
+                    let peak = 0.5 * (-(v / (frac * rate_rms)).powi(2)).exp();
+                    tau + size * v.signum() * (1.0 + peak)
+                }
+                DryFriction::Stribeck(_) => tau,
                 shape => {
                     if v.abs() > 1e-6 {
                         last_sign = v.signum();
