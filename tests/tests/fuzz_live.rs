@@ -97,8 +97,9 @@ fn command(joint: u16, t: u64, pivot: f64, marker: f64) -> JointCommand {
 }
 
 /// Payload `i` of the flood and the key index it goes to: 0–3 a joint's sample key, 4–7 a
-/// joint's command key, 8 the stiffness goal, 9 the end-effector estimate.
-fn payload(i: usize, rng: &mut Rng, sent: &mut Sent) -> (usize, Vec<u8>) {
+/// joint's command key, 8 the stiffness goal, 9 the end-effector estimate. `launched_ns`: when
+/// the joints were launched (before any sample of theirs).
+fn payload(i: usize, rng: &mut Rng, sent: &mut Sent, launched_ns: u64) -> (usize, Vec<u8>) {
     const MARK: f64 = 0.123_456_789;
     let kind = (i / 10) % 8;
     let now = now_ns();
@@ -124,10 +125,13 @@ fn payload(i: usize, rng: &mut Rng, sent: &mut Sent) -> (usize, Vec<u8>) {
                 _ if (i / 80).is_multiple_of(2) => {
                     (encode(&sample(joint, 7, now, 0.0, 0.5)).unwrap(), true)
                 }
-                // Sequence 1, stamped 50 ms ago (within the clock bound, older than every
-                // sample the joint has had accepted since): a replay.
+                // Sequence 1, stamped when the joints were launched: older than every sample
+                // the estimator has accepted, so it is a replay however long the joint's own
+                // samples were held up (one stamped 50 ms ago passed as a restart behind a
+                // joint stalled longer than that on a loaded machine). Within the test's clock
+                // bound (`config_for_replays`) it is refused as a replay.
                 _ => (
-                    encode(&sample(joint, 1, now - 50_000_000, 0.0, 0.009)).unwrap(),
+                    encode(&sample(joint, 1, launched_ns, 0.0, 0.009)).unwrap(),
                     true,
                 ),
             };
@@ -200,12 +204,27 @@ fn payload(i: usize, rng: &mut Rng, sent: &mut Sent) -> (usize, Vec<u8>) {
     }
 }
 
+/// The example config with a clock bound of 60 s (its largest) written into `dir`: the flood's
+/// replays, stamped at the joints' launch, stay within it for the whole test and are refused as
+/// replays, not as off the clock; the stamps an hour ahead are still beyond it.
+fn config_for_replays(dir: &std::path::Path) -> std::path::PathBuf {
+    let text = std::fs::read_to_string(config()).unwrap();
+    let bound = "max_offset_ms = 100.0";
+    assert!(
+        text.contains(bound),
+        "the example config's clock bound moved"
+    );
+    let path = dir.join("parallel.toml");
+    std::fs::write(&path, text.replace(bound, "max_offset_ms = 60000.0")).unwrap();
+    path
+}
+
 #[test]
 fn a_flood_of_payloads_that_must_not_be_believed_is_counted_and_the_rig_keeps_estimating() {
     let _one_at_a_time = serial();
     let hub = format!("tcp/127.0.0.1:{}", free_port());
     let dir = common::test_dir("fuzz");
-    let cfg = config().to_string_lossy().into_owned();
+    let cfg = config_for_replays(&dir).to_string_lossy().into_owned();
     let est_log = dir.join("estimator.log");
     let alloc_log = dir.join("allocator.log");
     let mut procs: Vec<(String, Proc)> = vec![(
@@ -292,7 +311,7 @@ fn a_flood_of_payloads_that_must_not_be_believed_is_counted_and_the_rig_keeps_es
         let flood_from = now_ns();
         let t0 = Instant::now();
         for i in 0..PAYLOADS {
-            let (k, bytes) = payload(i, &mut rng, &mut sent);
+            let (k, bytes) = payload(i, &mut rng, &mut sent, start);
             pubs[k].put(bytes).await.unwrap();
             assert!(t0.elapsed() < Duration::from_secs(120), "the flood is bounded in time");
         }
