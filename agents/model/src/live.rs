@@ -26,7 +26,7 @@
 use std::collections::VecDeque;
 
 use crate::hysteresis::RestoringTorqueModel;
-use crate::identify::{Effect, Found, Place, Tare};
+use crate::identify::{AT_SEARCH_BOUND, Effect, Found, Place, Tare};
 
 /// The most samples a lag keeps (a 1 s lag at 10 kHz is 10 000).
 const MAX_HISTORY: usize = 1 << 16;
@@ -245,6 +245,9 @@ pub struct Applied {
 }
 
 /// Why an effect has no live form in the lever joint model.
+/// Why a lag at the bound of the lags searched is not put on the live rig.
+pub const AT_BOUND_NOT_APPLIED: &str = "the lag found is the bound of the lags searched, not a located lag (the error still falls there): check the sensors' timing (the estimator's sample ages, the torque sensor's filter) before correcting for a lag";
+
 pub fn no_live_form(e: Effect) -> &'static str {
     match e {
         Effect::CoulombFriction | Effect::ViscousFriction => {
@@ -312,6 +315,9 @@ pub fn from_found(found: &[Found], tare: &[Tare]) -> Applied {
                     period_rad: p("period_rad").unwrap_or(0.0),
                     phase_rad: p("phase_rad").unwrap_or(0.0),
                 });
+            }
+            (Effect::SensorDelay, _) if p(AT_SEARCH_BOUND).is_some_and(|v| v != 0.0) => {
+                a.refused.push((Effect::SensorDelay, AT_BOUND_NOT_APPLIED));
             }
             (Effect::SensorDelay, _) => a.effects.torque_lag_s = p("delay_s").unwrap_or(0.0),
             (e, _) => a.refused.push((e, no_live_form(e))),
@@ -636,5 +642,22 @@ mod tests {
             vec![Effect::ViscousFriction, Effect::StiffnessDrift]
         );
         assert!(a.refused.iter().all(|r| r.1.contains("rig calibrate")));
+    }
+
+    #[test]
+    fn a_lag_at_the_bound_of_the_lags_searched_is_not_put_on_the_live_rig() {
+        // The report names it (it paid off held out) but flags that its δ is the search's
+        // bound: the rig keeps its own timing and says why.
+        let lag = |flag: Option<f64>| {
+            let mut params = vec![("delay_s", -0.1)];
+            params.extend(flag.map(|v| (AT_SEARCH_BOUND, v)));
+            found(Effect::SensorDelay, None, params)
+        };
+        let a = from_found(&[lag(Some(1.0))], &[]);
+        assert_eq!(a.effects.torque_lag_s, 0.0);
+        assert_eq!(a.refused, vec![(Effect::SensorDelay, AT_BOUND_NOT_APPLIED)]);
+        let a = from_found(&[lag(None)], &[]);
+        assert_eq!(a.effects.torque_lag_s, -0.1);
+        assert!(a.refused.is_empty());
     }
 }

@@ -17,7 +17,9 @@ use std::sync::{Mutex, OnceLock};
 
 use plants::{Case, DryFriction, Inject, Motion, Plant, generate};
 use rig_model::hysteresis::Envelope;
-use rig_model::identify::{Declared, Holdout, Identified, Options, Place, Run, identify};
+use rig_model::identify::{
+    AT_SEARCH_BOUND, Declared, Holdout, Identified, Options, Place, Run, identify,
+};
 use rig_model::lever::LeverVsa;
 
 fn run_of(name: &str, plant: Plant, d: &plants::Data) -> Run {
@@ -716,6 +718,46 @@ fn dry_friction_built_up_over_a_small_speed_is_named_alone_with_that_speed() {
             }
         }
     }
+}
+
+#[test]
+fn a_lag_found_at_the_bound_of_the_lags_searched_is_named_but_said_not_to_be_located() {
+    // The link's angle lags by 10–30 ms under two counts of encoder noise. On this seed the
+    // validation error falls all the way to the bound of the ±100 ms searched (the shifted q̇
+    // also stands in for the noisy q̈): the lag is named, it pays off held out, and the report
+    // flags its δ as the bound, not a located lag, so `--apply` leaves the rig's timing alone.
+    // (Refusing such lags named nothing on 3 of this row's 10 seeds.)
+    let c = Case {
+        encoder_noise: 2.0,
+        ..cases(Plant::Link, Some(Inject::AngleLag), 1..2)[0]
+    };
+    let truth = generate(&c, 0).size;
+    let id = identify_case(&c);
+    let names: Vec<&str> = id.effects.iter().map(|e| e.effect.name()).collect();
+    assert_eq!(names, ["sensor_delay"], "{c:?}");
+    let delay = param_of(&id, "delay_s");
+    assert!(
+        (delay + 0.1).abs() < 1e-9 && truth < 0.05,
+        "{c:?}: δ {delay} s, the generator's lag {truth} s"
+    );
+    assert_eq!(param_of(&id, AT_SEARCH_BOUND), 1.0, "{c:?}");
+    let o = outcome_of(&c, &id);
+    assert!(o.paid_off(), "{c:?}: {o:?}");
+    // A lag inside the range carries no flag (the row's seed 2: −18.5 ms).
+    let c = Case {
+        encoder_noise: 2.0,
+        ..cases(Plant::Link, Some(Inject::AngleLag), 2..3)[0]
+    };
+    let id = identify_case(&c);
+    let lag = id
+        .effects
+        .iter()
+        .find(|e| e.effect.name() == "sensor_delay");
+    assert!(
+        lag.is_some_and(|e| e.params.iter().all(|p| p.0 != AT_SEARCH_BOUND)),
+        "{c:?}: {:?}",
+        id.effects
+    );
 }
 
 /// Identifies `c`, whose injected effect is dry friction, and checks that it is named alone,

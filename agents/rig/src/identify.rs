@@ -8,7 +8,7 @@ use std::path::{Path, PathBuf};
 use clap::ValueEnum;
 use rig_model::hysteresis::Envelope;
 use rig_model::identify::{
-    Declared, Effect, Holdout, Identified, Options, Place, Run, Tare, identify,
+    AT_SEARCH_BOUND, Declared, Effect, Holdout, Identified, Options, Place, Run, Tare, identify,
 };
 use serde_json::{Map, Value, json};
 
@@ -373,11 +373,20 @@ fn notes(res: &Identified, fit: &[Run], held: &[Run]) -> Vec<String> {
         } else {
             "deflection"
         };
-        n.push(if delay >= 0.0 {
+        let mut note = if delay >= 0.0 {
             format!("lag: the torque lags the {x} by {:.1} ms", delay * 1e3)
         } else {
             format!("lag: the {x} lags the torque by {:.1} ms", -delay * 1e3)
-        });
+        };
+        if d.params
+            .iter()
+            .any(|p| p.0 == AT_SEARCH_BOUND && p.1 != 0.0)
+        {
+            note.push_str(
+                " — the bound of the lags searched: the error still falls there, so the lag is not located (the real one may be shorter; on the link equation an encoder's noise pulls it out); `--apply` leaves the rig's timing as it is",
+            );
+        }
+        n.push(note);
     }
     for r in fit.iter().chain(held) {
         let steps = rig_model::identify::signals::steps(&r.tau);

@@ -173,6 +173,11 @@ impl Errors {
     }
 }
 
+/// A parameter of a `sensor_delay` whose δ is the bound of the lags searched (±
+/// [`Options::max_delay`]), set to 1: the error still falls there, so the lag is not located
+/// (a real lag's optimum lies inside the range). `--apply` does not put such a lag on the rig.
+pub const AT_SEARCH_BOUND: &str = "at_search_bound";
+
 /// An effect added to the model.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Found {
@@ -557,7 +562,13 @@ pub fn identify(
     effects.extend(chosen.iter().enumerate().map(|(k, c)| Found {
         effect: c.effect,
         on: (c.effect == Effect::Offset).then_some(c.on),
-        params: c.params(after.part(k + 1), &sig, &base_coefs),
+        params: {
+            let mut params = c.params(after.part(k + 1), &sig, &base_coefs);
+            if select::at_the_searchs_bound(c, &candidates) {
+                params.push((AT_SEARCH_BOUND, 1.0));
+            }
+            params
+        },
         gain_rmse: held_errs[k] - held_errs[k + 1],
         validation_gain: kept_gains[k],
     }));

@@ -231,6 +231,25 @@ impl NotAdded {
 /// Why a lag of the deflection is not added beside viscous friction on a joint model.
 const RATE_NOISE_WHY: &str = "a lag of the deflection beside viscous friction (to first order the same column) gaining no more than the noise of the rate the friction is fitted on";
 
+/// Whether `c` is a lag at the largest |δ| its effect's grid in `cands` searched. The error
+/// is then still falling at the bound: the optimum is outside the range, and the lag stated
+/// is the bound, not a located property of the data. Such a lag is still named where it pays
+/// (under two counts of encoder noise three real angle lags of 10–30 ms on the link came out
+/// at −100 ms: the shifted q̇ also stands in for the noisy q̈; refusing them named nothing),
+/// but the report says so (`at_search_bound`) and `--apply` does not put it on the live rig.
+pub(crate) fn at_the_searchs_bound(c: &Shaped, cands: &[(Effect, Vec<Shaped>)]) -> bool {
+    if c.effect != Effect::SensorDelay {
+        return false;
+    }
+    let bound = cands
+        .iter()
+        .flat_map(|(_, g)| g)
+        .filter(|g| g.effect == Effect::SensorDelay)
+        .map(|g| g.shape.abs())
+        .fold(0.0, f64::max);
+    bound > 0.0 && c.shape.abs() >= bound * (1.0 - 1e-9)
+}
+
 /// The rows the fit uses, split.
 pub(crate) struct Rows {
     pub train: Vec<usize>,
