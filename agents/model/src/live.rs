@@ -244,10 +244,10 @@ pub struct Applied {
     pub jumps: Vec<(Place, f64)>,
 }
 
-/// Why an effect has no live form in the lever joint model.
 /// Why a lag at the bound of the lags searched is not put on the live rig.
 pub const AT_BOUND_NOT_APPLIED: &str = "the lag found is the bound of the lags searched, not a located lag (the error still falls there): check the sensors' timing (the estimator's sample ages, the torque sensor's filter) before correcting for a lag";
 
+/// Why an effect has no live form in the lever joint model.
 pub fn no_live_form(e: Effect) -> &'static str {
     match e {
         Effect::CoulombFriction | Effect::ViscousFriction => {
