@@ -26,7 +26,7 @@
 use std::collections::VecDeque;
 
 use crate::hysteresis::RestoringTorqueModel;
-use crate::identify::{AT_SEARCH_BOUND, Effect, Found, Place, Tare};
+use crate::identify::{Effect, Found, Place, Tare};
 
 /// The most samples a lag keeps (a 1 s lag at 10 kHz is 10 000).
 const MAX_HISTORY: usize = 1 << 16;
@@ -316,7 +316,7 @@ pub fn from_found(found: &[Found], tare: &[Tare]) -> Applied {
                     phase_rad: p("phase_rad").unwrap_or(0.0),
                 });
             }
-            (Effect::SensorDelay, _) if p(AT_SEARCH_BOUND).is_some_and(|v| v != 0.0) => {
+            (Effect::SensorDelay, _) if f.at_search_bound() => {
                 a.refused.push((Effect::SensorDelay, AT_BOUND_NOT_APPLIED));
             }
             (Effect::SensorDelay, _) => a.effects.torque_lag_s = p("delay_s").unwrap_or(0.0),
@@ -344,6 +344,7 @@ pub fn from_found(found: &[Found], tare: &[Tare]) -> Applied {
 mod tests {
     use super::*;
     use crate::hysteresis::{RestoringCurve, RestoringParams};
+    use crate::identify::AT_SEARCH_BOUND;
 
     fn linear_ish() -> RestoringTorqueModel {
         // h = 0 and a transition curve steeper than the line: the model is τ = k·φ once the

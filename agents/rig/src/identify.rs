@@ -8,7 +8,7 @@ use std::path::{Path, PathBuf};
 use clap::ValueEnum;
 use rig_model::hysteresis::Envelope;
 use rig_model::identify::{
-    AT_SEARCH_BOUND, Declared, Effect, Holdout, Identified, Options, Place, Run, Tare, identify,
+    Declared, Effect, Holdout, Identified, Options, Place, Run, Tare, identify,
 };
 use serde_json::{Map, Value, json};
 
@@ -378,10 +378,7 @@ fn notes(res: &Identified, fit: &[Run], held: &[Run]) -> Vec<String> {
         } else {
             format!("lag: the {x} lags the torque by {:.1} ms", -delay * 1e3)
         };
-        if d.params
-            .iter()
-            .any(|p| p.0 == AT_SEARCH_BOUND && p.1 != 0.0)
-        {
+        if d.at_search_bound() {
             note.push_str(
                 " — the bound of the lags searched: the error still falls there, so the lag is not located (the real one may be shorter; on the link equation an encoder's noise pulls it out); `--apply` leaves the rig's timing as it is",
             );

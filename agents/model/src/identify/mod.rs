@@ -191,6 +191,15 @@ pub struct Found {
     pub validation_gain: f64,
 }
 
+impl Found {
+    /// A lag whose δ is the bound of the lags searched ([`AT_SEARCH_BOUND`]): not located.
+    pub fn at_search_bound(&self) -> bool {
+        self.params
+            .iter()
+            .any(|&(n, v)| n == AT_SEARCH_BOUND && v != 0.0)
+    }
+}
+
 /// A candidate that was tried and refused, with its best relative validation gain.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Refused {
