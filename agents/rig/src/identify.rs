@@ -70,8 +70,9 @@ pub struct Args {
     no_tare: bool,
     /// Tare each file by its rest alone (its torque and deflection there are its zeros). By
     /// default, with the linear spring (`--model linear`), a rest is read as a state of the loop:
-    /// the encoder's frame is kept from file to file (a held-out file whose encoder was zeroed
-    /// at its start is read from where the last fit file ended unloaded), the stop operators
+    /// the encoder's frame is kept from file to file (a file whose encoder was zeroed at its
+    /// start is read from where the file before it ended unloaded: each --data file after the
+    /// first from the one given before it, a held-out file from the last), the stop operators
     /// start where the rest puts them, and only what the loop cannot hold is a torque zero
     #[arg(long, conflicts_with = "no_tare")]
     rest_tare: bool,

@@ -424,8 +424,9 @@ pub fn identify(
             .map(|(k, r)| apply_tare(r, &tare[first + k]))
             .collect()
     };
-    // Or the rests are states of the loop: the runs as measured (a held-out run zeroed at its
-    // start read in the fit run's frame), each run's state and torque zero set by its rest.
+    // Or the rests are states of the loop: the runs as measured (a run zeroed at its start
+    // read in the frame of the run before it: the fit runs in turn, the held-out runs after
+    // the last fit run), each run's state and torque zero set by its rest.
     let loop_rests = if opts.loop_states {
         states::rests(opts.model, &tare)
     } else {
@@ -436,11 +437,11 @@ pub fn identify(
     let frame: Vec<f64> = match &loop_rests {
         Some(_) => {
             let x0 = tare[0].deflection_zero;
-            let held_shift = states::continuity(fit_runs, held, before.part(0)[0]);
-            fit_runs
+            let (fit_shift, held_shift) = states::continuity(fit_runs, held, before.part(0)[0]);
+            fit_shift
                 .iter()
-                .map(|_| -x0)
-                .chain(held_shift.iter().map(|d| d - x0))
+                .chain(&held_shift)
+                .map(|d| d - x0)
                 .collect()
         }
         None => vec![],

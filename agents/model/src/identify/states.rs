@@ -70,20 +70,39 @@ pub(crate) fn end_unloaded(r: &Run, k: f64) -> Option<f64> {
     })
 }
 
-/// The deflection each held-out run is shifted by (added to its readings): where the last fit
-/// run ends unloaded, for a held-out run zeroed at its start when the fit run was too and
-/// ended unloaded; else 0.
-pub(crate) fn continuity(fit: &[Run], held: &[Run], k: f64) -> Vec<f64> {
-    let end = fit
-        .last()
-        .filter(|r| zeroed_at_start(r))
-        .and_then(|r| end_unloaded(r, k));
-    held.iter()
+/// The deflection each run is shifted by (added to its readings) to be read in the first fit
+/// run's frame: `(fit, held)`. A run zeroed at its start was zeroed where the run before it
+/// left the spring, so it follows that run's frame, shifted by where that run ends unloaded,
+/// when that run was zeroed at its start too and ended unloaded; else it is read as measured
+/// (0). The fit runs chain in the order given (the second fit run follows the first, and so
+/// on); every held-out run follows the last fit run. With one fit run the held-out run's shift
+/// is where it ends unloaded; with two, where the first ends plus where the second ends.
+pub(crate) fn continuity(fit: &[Run], held: &[Run], k: f64) -> (Vec<f64>, Vec<f64>) {
+    // Where a run ends unloaded in the first fit run's frame, given its own shift: what a run
+    // zeroed after it is shifted by.
+    let next = |r: &Run, shift: f64| -> Option<f64> {
+        zeroed_at_start(r)
+            .then(|| end_unloaded(r, k))
+            .flatten()
+            .map(|e| shift + e)
+    };
+    let mut fit_shift: Vec<f64> = Vec::with_capacity(fit.len());
+    for (i, r) in fit.iter().enumerate() {
+        let s = match i.checked_sub(1) {
+            Some(j) if zeroed_at_start(r) => next(&fit[j], fit_shift[j]).unwrap_or(0.0),
+            _ => 0.0,
+        };
+        fit_shift.push(s);
+    }
+    let end = fit.last().and_then(|r| next(r, fit_shift[fit.len() - 1]));
+    let held_shift = held
+        .iter()
         .map(|h| match end {
             Some(x) if zeroed_at_start(h) => x,
             _ => 0.0,
         })
-        .collect()
+        .collect();
+    (fit_shift, held_shift)
 }
 
 /// The run with `shift` added to its deflection.
@@ -309,11 +328,42 @@ mod tests {
         let carried: Run = shifted(&zeroed, 0.03);
         assert!(zeroed_at_start(&fit) && zeroed_at_start(&zeroed));
         assert!(!zeroed_at_start(&carried));
-        let c = continuity(std::slice::from_ref(&fit), &[zeroed.clone(), carried], 10.0);
+        let (f, c) = continuity(std::slice::from_ref(&fit), &[zeroed.clone(), carried], 10.0);
+        assert_eq!(f, vec![0.0], "the first fit run is the frame");
         assert!((c[0] - 0.008).abs() < 1e-12, "{c:?}");
         assert_eq!(c[1], 0.0, "a frame carried over is kept");
         // A fit run that ends loaded (0.5 N·m of 1) says nothing of where the spring rests.
         let loaded = swing(0.05, 0.5);
-        assert_eq!(continuity(&[loaded], &[zeroed], 10.0), vec![0.0]);
+        assert_eq!(continuity(&[loaded], &[zeroed], 10.0).1, vec![0.0]);
+    }
+
+    #[test]
+    fn fit_runs_each_zeroed_at_the_start_chain_their_frames_and_the_held_out_run_follows_the_last()
+    {
+        // Three tests of one protocol, each zeroed where the one before left the spring: the
+        // first ends unloaded at 0.008 rad (0.01 − 0.02/10), the second at 0.004 rad in its own
+        // readings (0.005 − 0.01/10). In the first's frame the second starts at 0.008 and the
+        // held-out third at 0.008 + 0.004, not at 0.004 (where the second ends in its own).
+        let swing = |end_x: f64, end_tau: f64| {
+            let mut phi: Vec<f64> = (0..100).map(|i| 0.1 * (i as f64 * 0.1).sin()).collect();
+            let mut tau: Vec<f64> = phi.iter().map(|x| 10.0 * x).collect();
+            phi.extend([end_x; 50]);
+            tau.extend([end_tau; 50]);
+            run(phi, tau)
+        };
+        let (first, second, third) = (swing(0.01, 0.02), swing(0.005, 0.01), swing(0.0, 0.0));
+        let (f, h) = continuity(&[first.clone(), second.clone()], &[third.clone()], 10.0);
+        assert!(f[0] == 0.0 && (f[1] - 0.008).abs() < 1e-12, "{f:?}");
+        assert!((h[0] - 0.012).abs() < 1e-12, "{h:?}");
+        // A second fit run whose frame was carried over (not zeroed) is read as measured, and
+        // the held-out run, zeroed after it, then follows where it ends in its own readings.
+        let carried = shifted(&second, 0.03);
+        let (f, h) = continuity(&[first, carried], &[third], 10.0);
+        assert_eq!(f, vec![0.0, 0.0]);
+        assert_eq!(
+            h,
+            vec![0.0],
+            "a fit run not zeroed at its start gives no chain"
+        );
     }
 }
