@@ -71,18 +71,16 @@ fn scenario(name: &str, toml: &str) -> PathBuf {
 }
 
 fn identify(csv: &Path, extra: &[&str]) -> Value {
-    let report = csv.with_extension("json");
-    let o = Command::new(bin("rig"))
-        .arg("identify")
-        .args(extra)
-        .arg("--data")
-        .arg(csv)
-        .arg("--report")
-        .arg(&report)
-        .output()
-        .unwrap();
+    let mut c = Command::new(bin("rig"));
+    c.arg("identify").args(extra).arg("--data").arg(csv);
+    report_of(c, &csv.with_extension("json"))
+}
+
+/// Runs a `rig identify` command with `--report report`; the report, once it succeeded.
+fn report_of(mut c: Command, report: &Path) -> Value {
+    let o = c.arg("--report").arg(report).output().unwrap();
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
-    serde_json::from_slice(&std::fs::read(&report).unwrap()).unwrap()
+    serde_json::from_slice(&std::fs::read(report).unwrap()).unwrap()
 }
 
 fn names(v: &Value) -> Vec<String> {
@@ -394,84 +392,6 @@ fn with_a_config_the_restoring_loop_follows_the_levers_curve_and_holds_its_geome
     assert!((k / 2.7114 - 1.0).abs() > 0.05, "k {k}");
 }
 
-/// Where a measured test ends unloaded [rad], as the data README's columns give it: the
-/// medians of its last 0.25 s of deflection (deg) and torque, the deflection less the torque
-/// over `k` (the upper median of an even count, as the library takes it).
-fn end_unloaded(csv: &Path, k: f64) -> f64 {
-    let text = std::fs::read_to_string(csv).unwrap();
-    let rows: Vec<(f64, f64, f64)> = text
-        .lines()
-        .skip(1)
-        .map(|l| {
-            let c: Vec<f64> = l.split(',').map(|v| v.parse().unwrap()).collect();
-            (c[1], c[3], c[4].to_radians())
-        })
-        .collect();
-    let t_end = rows.last().unwrap().0;
-    let tail: Vec<_> = rows.iter().filter(|r| r.0 >= t_end - 0.25).collect();
-    let median = |mut v: Vec<f64>| {
-        v.sort_by(f64::total_cmp);
-        v[v.len() / 2]
-    };
-    let x = median(tail.iter().map(|r| r.2).collect());
-    let tau = median(tail.iter().map(|r| r.1).collect());
-    x - tau / k
-}
-
-#[test]
-fn measured_spring_5_fitted_on_both_tests_reads_each_from_where_the_test_before_it_ended() {
-    // On 9 Mar every test's encoder was zeroed at its start, where the test before it had
-    // left the spring. Fitted on both tests, the second is read in the first's frame shifted
-    // by where the first ends unloaded, and a held-out test after them by where each ended:
-    // a third test follows the second, not the first.
-    let Some(dir) = springs() else { return };
-    let (first, second) = (
-        dir.join("kt-9-1-70-5-09032023-143520.csv"),
-        dir.join("kt-9-2-71-5-09032023-143611.csv"),
-    );
-    let report = scratch("spring5-9nm-both.json");
-    let o = Command::new(bin("rig"))
-        .args([
-            "identify",
-            "--model",
-            "linear",
-            "--columns",
-            "t=time,phi=displacement:deg,tau=torque_out",
-            "--data",
-        ])
-        .arg(&first)
-        .arg("--data")
-        .arg(&second)
-        .arg("--holdout")
-        .arg(&second)
-        .arg("--report")
-        .arg(&report)
-        .output()
-        .unwrap();
-    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
-    let v: Value = serde_json::from_slice(&std::fs::read(&report).unwrap()).unwrap();
-    let k = v["base"]["before"]["stiffness_nm_per_rad"]
-        .as_f64()
-        .unwrap();
-    let (e1, e2) = (end_unloaded(&first, k), end_unloaded(&second, k));
-    let zero = |i: usize| v["tare"][i]["deflection_zero"].as_f64().unwrap();
-    // The first test ends 0.35 mrad on (its loop's remanent deflection): far more than a
-    // count (14 µrad), so reading the second in the first's frame would be plainly wrong.
-    // (Within a third of a count: the medians are of counts, and a row at the window's edge
-    // read otherwise would move one by a count at most.)
-    assert!((1e-4..1e-3).contains(&e1.abs()), "first ends at {e1} rad");
-    assert!(
-        (zero(0) - zero(1) - e1).abs() < 5e-6,
-        "second fit file shifted {} rad, the first ends at {e1} rad",
-        zero(0) - zero(1)
-    );
-    assert!(
-        (zero(0) - zero(2) - (e1 + e2)).abs() < 5e-6,
-        "held-out file shifted {} rad, the two end at {e1} + {e2} rad",
-        zero(0) - zero(2)
-    );
-}
-
 // Declared: paper A's link equation; plant: the AWAS.
 
 fn link_parameters_match_the_config(v: &Value) {
@@ -550,25 +470,11 @@ fn springs() -> Option<PathBuf> {
 #[test]
 fn measured_spring_5_at_9_nm_linear_start_names_what_it_lacks_and_says_what_is_messy() {
     let Some(dir) = springs() else { return };
-    let report = scratch("spring5-9nm.json");
-    let o = Command::new(bin("rig"))
-        .args([
-            "identify",
-            "--model",
-            "linear",
-            "--columns",
-            "t=time,phi=displacement:deg,tau=torque_out",
-            "--data",
-        ])
-        .arg(dir.join("kt-9-1-70-5-09032023-143520.csv"))
-        .arg("--holdout")
-        .arg(dir.join("kt-9-2-71-5-09032023-143611.csv"))
-        .arg("--report")
-        .arg(&report)
-        .output()
-        .unwrap();
-    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
-    let v: Value = serde_json::from_slice(&std::fs::read(&report).unwrap()).unwrap();
+    let v = identify_spring(
+        &[&dir.join("kt-9-1-70-5-09032023-143520.csv")],
+        &dir.join("kt-9-2-71-5-09032023-143611.csv"),
+        "spring5-9nm.json",
+    );
     // The data README: a linear fit leaves about 1.1 N·m against a 10 N·m peak (fitted on
     // the same test); fitted on one test and scored on the other it is a little worse.
     let (before, after) = (rmse(&v, "before"), rmse(&v, "after"));
@@ -626,4 +532,80 @@ fn measured_spring_5_at_9_nm_linear_start_names_what_it_lacks_and_says_what_is_m
             p.display()
         );
     }
+}
+
+/// `rig identify --model linear` on measured spring tests (the data README's columns), fitted
+/// on `fit` in that order and held out on `held`; the report, written under `report`.
+fn identify_spring(fit: &[&Path], held: &Path, report: &str) -> Value {
+    let mut c = Command::new(bin("rig"));
+    c.args([
+        "identify",
+        "--model",
+        "linear",
+        "--columns",
+        "t=time,phi=displacement:deg,tau=torque_out",
+    ]);
+    for f in fit {
+        c.arg("--data").arg(f);
+    }
+    c.arg("--holdout").arg(held);
+    report_of(c, &scratch(report))
+}
+
+/// Where a measured test ends unloaded [rad], as the data README's columns give it: the
+/// medians of its last 0.25 s of deflection (deg) and torque, the deflection less the torque
+/// over `k` (the upper median of an even count, as the library takes it).
+fn end_unloaded(csv: &Path, k: f64) -> f64 {
+    let text = std::fs::read_to_string(csv).unwrap();
+    let rows: Vec<(f64, f64, f64)> = text
+        .lines()
+        .skip(1)
+        .map(|l| {
+            let c: Vec<f64> = l.split(',').map(|v| v.parse().unwrap()).collect();
+            (c[1], c[3], c[4].to_radians())
+        })
+        .collect();
+    let t_end = rows.last().unwrap().0;
+    let tail: Vec<_> = rows.iter().filter(|r| r.0 >= t_end - 0.25).collect();
+    let median = |mut v: Vec<f64>| {
+        v.sort_by(f64::total_cmp);
+        v[v.len() / 2]
+    };
+    let x = median(tail.iter().map(|r| r.2).collect());
+    let tau = median(tail.iter().map(|r| r.1).collect());
+    x - tau / k
+}
+
+#[test]
+fn measured_spring_5_fitted_on_both_tests_reads_each_from_where_the_test_before_it_ended() {
+    // On 9 Mar every test's encoder was zeroed at its start, where the test before it had
+    // left the spring. Fitted on both tests, the second is read in the first's frame shifted
+    // by where the first ends unloaded, and a held-out test after them by where each ended:
+    // a third test follows the second, not the first.
+    let Some(dir) = springs() else { return };
+    let (first, second) = (
+        dir.join("kt-9-1-70-5-09032023-143520.csv"),
+        dir.join("kt-9-2-71-5-09032023-143611.csv"),
+    );
+    let v = identify_spring(&[&first, &second], &second, "spring5-9nm-both.json");
+    let k = v["base"]["before"]["stiffness_nm_per_rad"]
+        .as_f64()
+        .unwrap();
+    let (e1, e2) = (end_unloaded(&first, k), end_unloaded(&second, k));
+    let zero = |i: usize| v["tare"][i]["deflection_zero"].as_f64().unwrap();
+    // The first test ends 0.35 mrad on (its loop's remanent deflection): far more than a
+    // count (14 µrad), so reading the second in the first's frame would be plainly wrong.
+    // (Within a third of a count: the medians are of counts, and a row at the window's edge
+    // read otherwise would move one by a count at most.)
+    assert!((1e-4..1e-3).contains(&e1.abs()), "first ends at {e1} rad");
+    assert!(
+        (zero(0) - zero(1) - e1).abs() < 5e-6,
+        "second fit file shifted {} rad, the first ends at {e1} rad",
+        zero(0) - zero(1)
+    );
+    assert!(
+        (zero(0) - zero(2) - (e1 + e2)).abs() < 5e-6,
+        "held-out file shifted {} rad, the two end at {e1} + {e2} rad",
+        zero(0) - zero(2)
+    );
 }

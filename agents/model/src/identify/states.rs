@@ -312,17 +312,20 @@ mod tests {
         }
     }
 
+    /// A test zeroed at its start (first reading 0): a swing of ±0.1 rad through a 10 N·m/rad
+    /// spring, then at rest at `end_x` reading `end_tau`.
+    fn swing(end_x: f64, end_tau: f64) -> Run {
+        let mut phi: Vec<f64> = (0..100).map(|i| 0.1 * (i as f64 * 0.1).sin()).collect();
+        let mut tau: Vec<f64> = phi.iter().map(|x| 10.0 * x).collect();
+        phi.extend([end_x; 50]);
+        tau.extend([end_tau; 50]);
+        run(phi, tau)
+    }
+
     #[test]
     fn an_encoder_zeroed_at_the_start_is_read_from_where_the_fit_run_ended_unloaded() {
         // Zeroed (first reading 0), a swing of ±0.1 rad, ending at 0.01 rad and 0.02 N·m of a
         // 1 N·m peak: unloaded at 0.01 − 0.02/10 = 0.008 rad through k = 10 N·m/rad.
-        let swing = |end_x: f64, end_tau: f64| {
-            let mut phi: Vec<f64> = (0..100).map(|i| 0.1 * (i as f64 * 0.1).sin()).collect();
-            let mut tau: Vec<f64> = phi.iter().map(|x| 10.0 * x).collect();
-            phi.extend([end_x; 50]);
-            tau.extend([end_tau; 50]);
-            run(phi, tau)
-        };
         let fit = swing(0.01, 0.02);
         let zeroed = swing(0.0, 0.0);
         let carried: Run = shifted(&zeroed, 0.03);
@@ -344,15 +347,12 @@ mod tests {
         // first ends unloaded at 0.008 rad (0.01 − 0.02/10), the second at 0.004 rad in its own
         // readings (0.005 − 0.01/10). In the first's frame the second starts at 0.008 and the
         // held-out third at 0.008 + 0.004, not at 0.004 (where the second ends in its own).
-        let swing = |end_x: f64, end_tau: f64| {
-            let mut phi: Vec<f64> = (0..100).map(|i| 0.1 * (i as f64 * 0.1).sin()).collect();
-            let mut tau: Vec<f64> = phi.iter().map(|x| 10.0 * x).collect();
-            phi.extend([end_x; 50]);
-            tau.extend([end_tau; 50]);
-            run(phi, tau)
-        };
         let (first, second, third) = (swing(0.01, 0.02), swing(0.005, 0.01), swing(0.0, 0.0));
-        let (f, h) = continuity(&[first.clone(), second.clone()], &[third.clone()], 10.0);
+        let (f, h) = continuity(
+            &[first.clone(), second.clone()],
+            std::slice::from_ref(&third),
+            10.0,
+        );
         assert!(f[0] == 0.0 && (f[1] - 0.008).abs() < 1e-12, "{f:?}");
         assert!((h[0] - 0.012).abs() < 1e-12, "{h:?}");
         // A second fit run whose frame was carried over (not zeroed) is read as measured, and

@@ -1,0 +1,38 @@
+# Sourced by scripts/identify-springs.sh and scripts/springs-two-fit.sh:
+#   data  the measured springs (first argument, else ../shared/data/sea-torsion-springs)
+#   out   where the reports go (second argument, else $TMPDIR/$out_default)
+#   rig   the rig binary (RIG, else the release build, built if missing)
+#   each_pair FN  calls FN SPRING AMPLITUDE FIRST SECOND NAME for each spring and amplitude
+#                 with two tests (in the order of their test ids)
+#   identify NAME ARGS…  `rig identify --model linear` on the data README's columns, the
+#                 report at $out/NAME.json; says so and returns 1 when it fails
+here="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
+data="${1:-$here/../shared/data/sea-torsion-springs}"
+out="${2:-${TMPDIR:-/tmp}/$out_default}"
+rig="${RIG:-${CARGO_TARGET_DIR:-$here/target}/release/rig}"
+if [ ! -d "$data" ]; then
+  echo "no data at $data: put the shared data beside the clone (../shared/data/sea-torsion-springs)" >&2
+  exit 2
+fi
+[ -x "$rig" ] || (cd "$here" && cargo build --release -p rig >&2)
+mkdir -p "$out"
+
+each_pair() {
+  local each="$1"
+  # kt-<amplitude>-<series>-<test>-<spring>-<date>-<time>.csv → pairs by (spring, amplitude).
+  ls "$data"/kt-*.csv | xargs -n1 basename | awk -F- '{print $5" "$2}' | sort -n -k1,1 -k2,2 -u |
+    while read -r spring amp; do
+      # shellcheck disable=SC2046
+      set -- $(ls "$data"/kt-"$amp"-*-*-"$spring"-*.csv | sort -t- -k4,4n)
+      [ $# -ge 2 ] || continue
+      "$each" "$spring" "$amp" "$1" "$2" "spring$spring-${amp}nm"
+    done
+}
+
+identify() {
+  local name="$1"
+  shift
+  "$rig" identify --model linear --columns t=time,phi=displacement:deg,tau=torque_out \
+    "$@" --report "$out/$name.json" >/dev/null 2>"$out/$name.log" \
+    || { echo "$name: failed, see $out/$name.log" >&2; return 1; }
+}
