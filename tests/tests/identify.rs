@@ -603,6 +603,15 @@ fn measured_spring_5_fitted_on_both_tests_reads_each_from_where_the_test_before_
         "second fit file shifted {} rad, the first ends at {e1} rad",
         zero(0) - zero(1)
     );
+    // The report says which file each was read after (the first, as measured, none).
+    let after = |i: usize| v["tare"][i]["read_after"].as_str().map(str::to_owned);
+    let name = |p: &Path| p.file_name().unwrap().to_string_lossy().into_owned();
+    assert_eq!(
+        (after(0), after(1), after(2)),
+        (None, Some(name(&first)), Some(name(&second))),
+        "{}",
+        v["tare"]
+    );
     assert!(
         (zero(0) - zero(2) - (e1 + e2)).abs() < 5e-6,
         "held-out file shifted {} rad, the two end at {e1} + {e2} rad",

@@ -540,6 +540,7 @@ mod tests {
             rest_shift_nm: 0.0,
             within_loop: false,
             loop_state: None,
+            read_after: None,
             rest: (0, 10),
         }
     }

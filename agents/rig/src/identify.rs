@@ -439,7 +439,12 @@ fn noise_line(res: &Identified) -> String {
 
 /// How a file's rest compares with the first file's, and what the rest was read as.
 fn zeros_why(t: &Tare) -> String {
-    let against = against_first(t);
+    let mut against = against_first(t);
+    if let Some(file) = &t.read_after {
+        against.push_str(&format!(
+            "; its encoder zeroed at its start, read from where {file} ended unloaded"
+        ));
+    }
     match t.loop_state {
         Some(lam) => format!(
             "{against}; read as a state of the loop: its stops start at {lam:+.2} of their half-widths"
@@ -489,6 +494,7 @@ fn tare_json(res: &Identified, off: bool) -> Value {
                     "rest_shift_nm": num(t.rest_shift_nm),
                     "within_loop": t.within_loop,
                     "loop_state": t.loop_state.map_or(Value::Null, num),
+                    "read_after": t.read_after,
                 })
             })
             .collect(),

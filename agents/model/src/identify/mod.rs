@@ -434,17 +434,23 @@ pub fn identify(
     };
     // One frame for every run, its zero at the first fit run's rest (where a gap or a stop is
     // centred): each run's deflection is shifted by `frame[k]`.
-    let frame: Vec<f64> = match &loop_rests {
+    // `read_after[k]`: the run whose end run k was read from, if it was.
+    let (frame, read_after): (Vec<f64>, Vec<Option<String>>) = match &loop_rests {
         Some(_) => {
             let x0 = tare[0].deflection_zero;
             let (fit_shift, held_shift) = states::continuity(fit_runs, held, before.part(0)[0]);
+            let last = fit_runs.len().saturating_sub(1);
+            let before_run = (0..fit_runs.len())
+                .map(|k| k.saturating_sub(1))
+                .chain(held.iter().map(|_| last));
             fit_shift
                 .iter()
                 .chain(&held_shift)
-                .map(|d| d - x0)
-                .collect()
+                .zip(before_run)
+                .map(|(d, j)| (d.unwrap_or(0.0) - x0, d.map(|_| fit_runs[j].name.clone())))
+                .unzip()
         }
-        None => vec![],
+        None => (vec![], vec![]),
     };
     let (mut p, base) = if loop_rests.is_some() {
         let shift = |runs: &[Run], first: usize| -> Vec<Run> {
@@ -533,6 +539,7 @@ pub fn identify(
         for (k, t) in tare.iter_mut().enumerate() {
             t.torque_zero = p.shifts[k];
             t.deflection_zero = -frame[k];
+            t.read_after = read_after[k].clone();
             t.loop_state = Some(states[k]);
         }
     }

@@ -45,6 +45,10 @@ pub struct Tare {
     /// start from) when the rest is read as a state of the loop ([`super::states`]): then the
     /// zeros above are what the loop cannot hold (torque) and the frame's shift (deflection).
     pub loop_state: Option<f64>,
+    /// The file this run was read after, under the same rule: its encoder zeroed at its start
+    /// where that file left the spring, it is read from where that file ended unloaded
+    /// ([`super::states::continuity`]). `None`: read as measured.
+    pub read_after: Option<String>,
     /// The samples of the rest, within the run.
     pub(crate) rest: (usize, usize),
 }
@@ -132,6 +136,7 @@ pub fn tare(runs: &[Run]) -> (Vec<Tare>, Option<String>) {
                 rest_shift_nm: 0.0,
                 within_loop: false,
                 loop_state: None,
+                read_after: None,
                 rest: (rest.start, rest.end),
                 window_s: rest.window_s,
                 torque_zero: rest.torque,
@@ -737,6 +742,7 @@ mod tests {
             rest_shift_nm: 0.0,
             within_loop: false,
             loop_state: None,
+            read_after: None,
             rest: (0, 10),
         };
         // The first run passes the angle 0 on branches 0.5 N·m either side of the model.

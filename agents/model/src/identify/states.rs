@@ -71,36 +71,38 @@ pub(crate) fn end_unloaded(r: &Run, k: f64) -> Option<f64> {
 }
 
 /// The deflection each run is shifted by (added to its readings) to be read in the first fit
-/// run's frame: `(fit, held)`. A run zeroed at its start was zeroed where the run before it
-/// left the spring, so it follows that run's frame, shifted by where that run ends unloaded,
-/// when that run was zeroed at its start too and ended unloaded; else it is read as measured
-/// (0). The fit runs chain in the order given (the second fit run follows the first, and so
-/// on); every held-out run follows the last fit run. With one fit run the held-out run's shift
-/// is where it ends unloaded; with two, where the first ends plus where the second ends.
-pub(crate) fn continuity(fit: &[Run], held: &[Run], k: f64) -> (Vec<f64>, Vec<f64>) {
+/// run's frame: `(fit, held)`, `None` where a run is read as measured. A run zeroed at its
+/// start was zeroed where the run before it left the spring, so it follows that run's frame,
+/// shifted by where that run ends unloaded, when that run was zeroed at its start too and
+/// ended unloaded. The fit runs chain in the order given (the second fit run follows the
+/// first, and so on); every held-out run follows the last fit run. With one fit run the
+/// held-out run's shift is where it ends unloaded; with two, where the first ends plus where
+/// the second ends in its own readings.
+pub(crate) fn continuity(
+    fit: &[Run],
+    held: &[Run],
+    k: f64,
+) -> (Vec<Option<f64>>, Vec<Option<f64>>) {
     // Where a run ends unloaded in the first fit run's frame, given its own shift: what a run
     // zeroed after it is shifted by.
-    let next = |r: &Run, shift: f64| -> Option<f64> {
+    let next = |r: &Run, shift: Option<f64>| -> Option<f64> {
         zeroed_at_start(r)
             .then(|| end_unloaded(r, k))
             .flatten()
-            .map(|e| shift + e)
+            .map(|e| shift.unwrap_or(0.0) + e)
     };
-    let mut fit_shift: Vec<f64> = Vec::with_capacity(fit.len());
+    let mut fit_shift: Vec<Option<f64>> = Vec::with_capacity(fit.len());
     for (i, r) in fit.iter().enumerate() {
         let s = match i.checked_sub(1) {
-            Some(j) if zeroed_at_start(r) => next(&fit[j], fit_shift[j]).unwrap_or(0.0),
-            _ => 0.0,
+            Some(j) if zeroed_at_start(r) => next(&fit[j], fit_shift[j]),
+            _ => None,
         };
         fit_shift.push(s);
     }
     let end = fit.last().and_then(|r| next(r, fit_shift[fit.len() - 1]));
     let held_shift = held
         .iter()
-        .map(|h| match end {
-            Some(x) if zeroed_at_start(h) => x,
-            _ => 0.0,
-        })
+        .map(|h| end.filter(|_| zeroed_at_start(h)))
         .collect();
     (fit_shift, held_shift)
 }
@@ -332,12 +334,12 @@ mod tests {
         assert!(zeroed_at_start(&fit) && zeroed_at_start(&zeroed));
         assert!(!zeroed_at_start(&carried));
         let (f, c) = continuity(std::slice::from_ref(&fit), &[zeroed.clone(), carried], 10.0);
-        assert_eq!(f, vec![0.0], "the first fit run is the frame");
-        assert!((c[0] - 0.008).abs() < 1e-12, "{c:?}");
-        assert_eq!(c[1], 0.0, "a frame carried over is kept");
+        assert_eq!(f, vec![None], "the first fit run is the frame");
+        assert!((c[0].unwrap() - 0.008).abs() < 1e-12, "{c:?}");
+        assert_eq!(c[1], None, "a frame carried over is kept");
         // A fit run that ends loaded (0.5 N·m of 1) says nothing of where the spring rests.
         let loaded = swing(0.05, 0.5);
-        assert_eq!(continuity(&[loaded], &[zeroed], 10.0).1, vec![0.0]);
+        assert_eq!(continuity(&[loaded], &[zeroed], 10.0).1, vec![None]);
     }
 
     #[test]
@@ -353,16 +355,19 @@ mod tests {
             std::slice::from_ref(&third),
             10.0,
         );
-        assert!(f[0] == 0.0 && (f[1] - 0.008).abs() < 1e-12, "{f:?}");
-        assert!((h[0] - 0.012).abs() < 1e-12, "{h:?}");
+        assert!(
+            f[0].is_none() && (f[1].unwrap() - 0.008).abs() < 1e-12,
+            "{f:?}"
+        );
+        assert!((h[0].unwrap() - 0.012).abs() < 1e-12, "{h:?}");
         // A second fit run whose frame was carried over (not zeroed) is read as measured, and
         // the held-out run, zeroed after it, then follows where it ends in its own readings.
         let carried = shifted(&second, 0.03);
         let (f, h) = continuity(&[first, carried], &[third], 10.0);
-        assert_eq!(f, vec![0.0, 0.0]);
+        assert_eq!(f, vec![None, None]);
         assert_eq!(
             h,
-            vec![0.0],
+            vec![None],
             "a fit run not zeroed at its start gives no chain"
         );
     }
