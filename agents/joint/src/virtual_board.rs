@@ -143,16 +143,22 @@ impl VirtualBoard {
                 missing: false,
             })
             .collect();
+        // The servos and encoders read the plant from the first moment, as a real board's
+        // do: one step now, before the plant's thread is first scheduled (under load that
+        // can be several of the agent's cycles later, and the motor read 0 until then).
+        let first = now_ns();
+        let t0 = first.saturating_sub(start_ns) as f64 * 1e-9;
+        step(&mut joints, &bus.servos, &encoders.state, t0, 0.0);
         let stop = Arc::new(AtomicBool::new(false));
         let thread = {
             let (stop, servos, bridge) = (stop.clone(), bus.servos.clone(), encoders.state.clone());
             std::thread::spawn(move || {
-                let mut last: Option<u64> = None;
+                let mut last = first;
                 while !stop.load(Ordering::Relaxed) {
                     let now = now_ns();
                     let t = now.saturating_sub(start_ns) as f64 * 1e-9;
-                    let dt = last.map_or(0.0, |l| now.saturating_sub(l) as f64 * 1e-9);
-                    last = Some(now);
+                    let dt = now.saturating_sub(last) as f64 * 1e-9;
+                    last = now;
                     step(&mut joints, &servos, &bridge, t, dt);
                     std::thread::sleep(STEP);
                 }
