@@ -696,6 +696,14 @@ pub(crate) fn forward(
         if p.model == Declared::Restoring {
             settle_restoring(p, &mut chosen, cands, rows, progress)?;
         }
+        // A jump the fit rows cannot place (inside a held-out block), whichever search found
+        // it: its gap's middle. The fit rows see the same columns, so nothing above changes.
+        let gaps = RowTimes::of(&sig.t_rel, &rows.fit);
+        for c in chosen.iter_mut().filter(|c| {
+            matches!(c.effect, Effect::Offset | Effect::StiffnessDrift) && c.shape.is_finite()
+        }) {
+            c.shape = gaps.centre(c.shape);
+        }
     }
     Ok(Selection {
         chosen,
@@ -891,8 +899,10 @@ fn jump_times_of(
         }
     }
     gains.sort_by(|a, b| b.1.total_cmp(&a.1));
+    let gaps = RowTimes::of(t_rel, rows);
     let mut out: Vec<f64> = Vec::new();
     for (t, _) in gains {
+        let t = gaps.centre(t);
         if out.iter().all(|o| (o - t).abs() > 1.0) {
             out.push(t);
         }
@@ -1541,6 +1551,48 @@ fn search(
     Some((b, e, tried))
 }
 
+/// The rows' times in order and their median step, to place jumps where the rows cannot.
+struct RowTimes {
+    times: Vec<f64>,
+    median: f64,
+}
+
+impl RowTimes {
+    fn of(t_rel: &[f64], rows: &[usize]) -> Self {
+        let mut times: Vec<f64> = rows.iter().map(|&i| t_rel[i]).collect();
+        times.sort_by(f64::total_cmp);
+        let mut steps: Vec<f64> = times.windows(2).map(|w| w[1] - w[0]).collect();
+        let median = if steps.is_empty() {
+            f64::INFINITY
+        } else {
+            let mid = steps.len() / 2;
+            *steps.select_nth_unstable_by(mid, f64::total_cmp).1
+        };
+        RowTimes { times, median }
+    }
+
+    /// A jump at `t` placed where the rows cannot tell: every instant between two rows adjacent
+    /// in time splits them alike, so an instant in a gap of the rows (a held-out block, every
+    /// fourth of a file's twelve) is put at the gap's middle — the least-worst guess for the
+    /// samples in it, which the rows never saw. So is one within two rows of a gap's edge: a
+    /// sample or two of noise cannot place a jump against a gap of hundreds (the searches' evenly
+    /// spaced instants fall on the blocks' edges). At the gap's end, a jump early in a held-out
+    /// block was wrong over all of it, and the held-out check refused a right step. Gaps under
+    /// ten of the rows' median steps (irregular sampling) leave `t` as it is.
+    fn centre(&self, t: f64) -> f64 {
+        let times = &self.times;
+        // `t` splits the rows before `after` from the rest; the gaps ending at rows
+        // after − 2 ..= after + 2, nearest first.
+        let after = times.partition_point(|&v| v < t);
+        [0, -1, 1, -2, 2]
+            .iter()
+            .filter_map(|&j| after.checked_add_signed(j))
+            .filter(|&k| k >= 1 && k < times.len())
+            .find(|&k| times[k] - times[k - 1] > 10.0 * self.median)
+            .map_or(t, |k| 0.5 * (times[k - 1] + times[k]))
+    }
+}
+
 /// The fit rows, train ∪ validate in order: what `search`, handed the two, judges a jump's
 /// instant and a stiffness step against.
 fn fit_rows(train: &[usize], validate: &[usize]) -> Vec<usize> {
@@ -1795,7 +1847,7 @@ pub(crate) fn with_heldout_veto(
 
 #[cfg(test)]
 mod tests {
-    use super::{golden_section, jump_times_of};
+    use super::{RowTimes, golden_section, jump_times_of};
 
     #[test]
     fn a_jump_is_placed_at_its_sample_with_the_models_own_column_projected_out() {
@@ -1827,6 +1879,43 @@ mod tests {
             // Three, a second apart or more.
             assert_eq!(times.len(), 3);
             assert!(times.windows(2).all(|w| (w[0] - w[1]).abs() > 1.0));
+        }
+    }
+
+    #[test]
+    fn a_jump_inside_a_held_out_block_is_placed_at_the_blocks_middle() {
+        // 30 s at 100 Hz, the rows all but a block [17.5, 20) s held out; a torque step of 0.2
+        // at 18.3 s, inside it. Every instant in the block splits the rows alike, so the jump
+        // goes to the middle of the gap between the rows either side: (17.49 + 20.00)/2.
+        let t: Vec<f64> = (0..3000).map(|i| i as f64 * 0.01).collect();
+        let rows: Vec<usize> = (0..t.len())
+            .filter(|&i| !(1750..2000).contains(&i))
+            .collect();
+        let e: Vec<f64> = rows
+            .iter()
+            .map(|&i| 0.2 * f64::from(t[i] >= 18.3) - 0.2 * 1200.0 / 2750.0)
+            .collect();
+        let times = jump_times_of((&t, 30.0), &rows, &e, &[], true);
+        assert!((times[0] - 0.5 * (17.49 + 20.0)).abs() < 1e-9, "{times:?}");
+        // The same step with every row kept is placed at its own sample, and a gap of a few
+        // samples (irregular sampling) moves nothing.
+        assert_eq!(
+            RowTimes::of(&t, &(0..3000).collect::<Vec<_>>()).centre(18.3),
+            18.3
+        );
+        let few: Vec<usize> = (0..3000).filter(|&i| !(1828..1830).contains(&i)).collect();
+        assert_eq!(RowTimes::of(&t, &few).centre(18.3), 18.3);
+        // A jump found a row or two after the gap's end, or before its start, likewise.
+        let middle = 0.5 * (17.49 + 20.0);
+        for at in [20.01, 20.02, 17.49, 17.48] {
+            assert!(
+                (RowTimes::of(&t, &rows).centre(at) - middle).abs() < 1e-9,
+                "{at}"
+            );
+        }
+        // Three rows away it is placed by them; before the first row or after the last, too.
+        for at in [20.03, 17.47, -1.0, 31.0] {
+            assert_eq!(RowTimes::of(&t, &rows).centre(at), at);
         }
     }
 
