@@ -39,8 +39,12 @@ fn lever_envelope() -> bool {
     std::env::var("LEVER_ENVELOPE").is_ok_and(|v| v == "1")
 }
 
-/// Identifies a case: fit on one run, held out on another.
+/// Identifies a case: fit on one run, held out on another (`BLOCKS=1`: the fit run alone,
+/// its blocks held out, [`identify_one_file`]).
 fn identify_case(c: &Case) -> Identified {
+    if std::env::var_os("BLOCKS").is_some() {
+        return identify_one_file(c);
+    }
     let (a, b) = (generate(c, 0), generate(c, 1));
     let fit = [run_of("fit", c.plant, &a)];
     let held = [run_of("held", c.plant, &b)];
@@ -905,7 +909,8 @@ fn table_over_many_seeds() {
     // BW_N, BW_GAMMA, INERTIA, DAMPING, COUNTS and F_MAX (`plants::PlantParams`), the torque
     // noise's colour with NOISE_TAU_MS (a sensor's low-pass, same rms), dry friction held at
     // rest with FRICTION=held or built up over TANH_VS of the rms rate with FRICTION=tanh (else
-    // released). MIN_GAIN
+    // released). BLOCKS=1 fits each case on its one run with every fourth of its twelve time
+    // blocks held out (`rig identify --data <one file>`), clean twins likewise. MIN_GAIN
     // overrides identify's smallest validation gain (default 5 %), RATE_WINDOW fixes the rates'
     // half-window [s] (else identify chooses it).
     println!(
