@@ -561,6 +561,38 @@ fn in_one_file_a_step_inside_a_held_out_block_is_named_and_put_at_the_blocks_mid
 }
 
 #[test]
+fn in_one_file_on_the_lever_a_jump_found_past_a_held_out_blocks_end_is_put_at_its_middle() {
+    // The lever at 200 Hz, ramp-and-hold, 2 % noise, one run, every fourth of twelve blocks
+    // held out: the encoder slips in the held-out block [17.5, 20) s. The slip's search refines
+    // its instant between the instants it tried and ended 3 rows past the block's end, where
+    // the step was wrong over most of the block and refused (nothing named). The fit rows fit
+    // better with the jump anywhere in the block, so it goes to the block's middle.
+    let c = case(Plant::Lever, Some(Inject::EncoderSlip), 3, 200.0, 0.02);
+    let truth = generate(&c, 0).jump_at_s;
+    assert!((17.5..20.0).contains(&truth), "{truth}");
+    let id = identify_one_file(&c);
+    let names: Vec<&str> = id.effects.iter().map(|e| e.effect.name()).collect();
+    assert_eq!(names, ["offset"]);
+    let at = param_of(&id, "jump_at_s");
+    assert!((at - 18.75).abs() < 0.01, "jump at {at} s");
+    // The report says the jump is somewhere in the block: the fit rows either side of it.
+    let (from, to) = (
+        param_of(&id, "held_out_block_from_s"),
+        param_of(&id, "held_out_block_to_s"),
+    );
+    assert!(
+        (from - 17.5).abs() < 0.01 && (to - 20.0).abs() < 0.01,
+        "{from}–{to}"
+    );
+    assert!(
+        id.after.rmse < 0.8 * id.before.rmse,
+        "held out {} -> {}",
+        id.before.rmse,
+        id.after.rmse
+    );
+}
+
+#[test]
 fn on_the_lever_viscous_friction_is_sized_in_full_and_not_taken_for_a_lag_of_the_angle() {
     // 200 Hz multi-sine: with loop and coefficient alternated, the loop kept part of the
     // friction as height and a 32 ms lag of the angle validated 5 % better than the friction.

@@ -386,6 +386,20 @@ fn notes(res: &Identified, fit: &[Run], held: &[Run]) -> Vec<String> {
         }
         n.push(note);
     }
+    for e in &res.effects {
+        let p = |name: &str| e.params.iter().find(|(n, _)| *n == name).map(|p| p.1);
+        let (Some(from), Some(to)) = (
+            p(rig_model::identify::HELD_OUT_BLOCK_FROM),
+            p(rig_model::identify::HELD_OUT_BLOCK_TO),
+        ) else {
+            continue;
+        };
+        n.push(format!(
+            "jump: the {}'s jump lies in the held-out block {from:.2}–{to:.2} s, where the fit rows cannot place it; it is put at the block's middle, {:.2} s, and the held-out error counts that block with the instant unknown (hold out a second test, --holdout, to place it)",
+            e.effect.name(),
+            0.5 * (from + to)
+        ));
+    }
     for r in fit.iter().chain(held) {
         let steps = rig_model::identify::signals::steps(&r.tau);
         if steps > 0 {

@@ -178,6 +178,13 @@ impl Errors {
 /// (a real lag's optimum lies inside the range). `--apply` does not put such a lag on the rig.
 pub const AT_SEARCH_BOUND: &str = "at_search_bound";
 
+/// Parameters of a jump (an offset's or a stiffness step's) that lies inside a held-out block
+/// of its run [s]: the times of the fit rows either side. The fit rows cannot place the jump
+/// in between, so it is put at the middle; the held-out error counts the block, though the
+/// jump's instant in it is not known.
+pub const HELD_OUT_BLOCK_FROM: &str = "held_out_block_from_s";
+pub const HELD_OUT_BLOCK_TO: &str = "held_out_block_to_s";
+
 /// An effect added to the model.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Found {
@@ -583,6 +590,10 @@ pub fn identify(
             let mut params = c.params(after.part(k + 1), &sig, &base_coefs);
             if select::at_the_searchs_bound(c, &candidates) {
                 params.push((AT_SEARCH_BOUND, 1.0));
+            }
+            if let Some((from, to)) = select::held_out_block(&p, c, &rows.fit) {
+                params.push((HELD_OUT_BLOCK_FROM, from));
+                params.push((HELD_OUT_BLOCK_TO, to));
             }
             params
         },
