@@ -205,8 +205,35 @@ struct ThroughputReport {
     /// [µs], measured from 2 s after the start (Linux).
     cpu_us_per_sample: Option<f64>,
     /// Each thread's CPU over that window, in cores (1.0: one core all the time), busiest
-    /// first: where it saturates.
+    /// first: where it saturates. The threads under 0.005 cores each come last as one entry,
+    /// `other threads (N)`, so the list adds up to `cpu_us_per_sample`.
     threads: Vec<ThreadCpu>,
+}
+
+/// Each thread's CPU in cores, busiest first; the threads under 0.005 cores each are summed
+/// into one last entry, `other threads (N)`, so that the list adds up to the whole process.
+fn by_thread(used: &BTreeMap<String, u64>, window: Duration) -> Vec<ThreadCpu> {
+    let secs = window.as_secs_f64().max(1e-9);
+    let (mut named, mut rest) = (Vec::new(), (0usize, 0.0));
+    for (name, ns) in used {
+        let cores = *ns as f64 * 1e-9 / secs;
+        if cores >= 0.005 {
+            named.push(ThreadCpu {
+                name: name.clone(),
+                cores,
+            });
+        } else if cores > 0.0 {
+            rest = (rest.0 + 1, rest.1 + cores);
+        }
+    }
+    named.sort_by(|a, b| b.cores.total_cmp(&a.cores));
+    if rest.0 > 0 {
+        named.push(ThreadCpu {
+            name: format!("other threads ({})", rest.0),
+            cores: rest.1,
+        });
+    }
+    named
 }
 
 #[derive(Debug, Serialize)]
@@ -657,18 +684,10 @@ fn throughput(a: &ThroughputArgs) -> Result<(), CliError> {
             let samples = e.core.samples as f64 / secs * window.as_secs_f64();
             (samples > 0.0).then(|| used.values().sum::<u64>() as f64 * 1e-3 / samples)
         }),
-        threads: r.cpu.as_ref().map_or_else(Vec::new, |(used, window)| {
-            let mut t: Vec<ThreadCpu> = used
-                .iter()
-                .map(|(name, ns)| ThreadCpu {
-                    name: name.clone(),
-                    cores: *ns as f64 * 1e-9 / window.as_secs_f64().max(1e-9),
-                })
-                .filter(|t| t.cores >= 0.005)
-                .collect();
-            t.sort_by(|a, b| b.cores.total_cmp(&a.cores));
-            t
-        }),
+        threads: r
+            .cpu
+            .as_ref()
+            .map_or_else(Vec::new, |(used, window)| by_thread(used, *window)),
     };
     if a.json {
         println!("{}", serde_json::to_string_pretty(&report).map_err(io)?);
@@ -851,4 +870,28 @@ fn footprint(a: &FootprintArgs) -> Result<(), CliError> {
         );
     }
     Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn threads_under_half_a_percent_of_a_core_are_summed_into_one_last_entry() {
+        // Over 2 s: 1 s of CPU is half a core; 4 ms and 6 ms are 0.002 and 0.003 cores.
+        let used: BTreeMap<String, u64> = [
+            ("rx-0", 1_000_000_000),
+            ("rx-1", 4_000_000),
+            ("tx-0", 6_000_000),
+            ("idle", 0),
+        ]
+        .into_iter()
+        .map(|(n, ns)| (n.to_string(), ns))
+        .collect();
+        let t = by_thread(&used, Duration::from_secs(2));
+        assert_eq!(t.len(), 2, "{t:?}");
+        assert_eq!((t[0].name.as_str(), t[0].cores), ("rx-0", 0.5));
+        assert_eq!(t[1].name, "other threads (2)");
+        assert!((t[1].cores - 0.005).abs() < 1e-12, "{t:?}");
+    }
 }
