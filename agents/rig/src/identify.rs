@@ -387,11 +387,7 @@ fn notes(res: &Identified, fit: &[Run], held: &[Run]) -> Vec<String> {
         n.push(note);
     }
     for e in &res.effects {
-        let p = |name: &str| e.params.iter().find(|(n, _)| *n == name).map(|p| p.1);
-        let (Some(from), Some(to)) = (
-            p(rig_model::identify::HELD_OUT_BLOCK_FROM),
-            p(rig_model::identify::HELD_OUT_BLOCK_TO),
-        ) else {
+        let Some((from, to)) = e.held_out_block() else {
             continue;
         };
         n.push(format!(

@@ -165,6 +165,12 @@ pub struct Shaped {
 }
 
 impl Shaped {
+    /// A jump at an instant (`shape`, s): an offset's step or a stiffness step, not a constant
+    /// or a drift.
+    pub(crate) fn is_jump(&self) -> bool {
+        matches!(self.effect, Effect::Offset | Effect::StiffnessDrift) && self.shape.is_finite()
+    }
+
     pub(crate) fn new(effect: Effect, shape: f64) -> Self {
         Self {
             effect,

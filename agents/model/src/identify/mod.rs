@@ -205,6 +205,12 @@ impl Found {
             .iter()
             .any(|&(n, v)| n == AT_SEARCH_BOUND && v != 0.0)
     }
+
+    /// A jump that lies in a held-out block: the block's ends [s] ([`HELD_OUT_BLOCK_FROM`]).
+    pub fn held_out_block(&self) -> Option<(f64, f64)> {
+        let p = |name: &str| self.params.iter().find(|(n, _)| *n == name).map(|p| p.1);
+        Some((p(HELD_OUT_BLOCK_FROM)?, p(HELD_OUT_BLOCK_TO)?))
+    }
 }
 
 /// A candidate that was tried and refused, with its best relative validation gain.
@@ -591,7 +597,7 @@ pub fn identify(
             if select::at_the_searchs_bound(c, &candidates) {
                 params.push((AT_SEARCH_BOUND, 1.0));
             }
-            if let Some((from, to)) = select::held_out_block(&p, c, &rows.fit) {
+            if let Some((from, to)) = select::held_out_block(&sig.t_rel, c, &rows.fit) {
                 params.push((HELD_OUT_BLOCK_FROM, from));
                 params.push((HELD_OUT_BLOCK_TO, to));
             }

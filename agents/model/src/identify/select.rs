@@ -1528,10 +1528,7 @@ fn search(
     // own estimate; whether the jump pays is still judged on validation. Under a torque
     // sensor's coloured noise (a 20 ms low-pass) a linear spring's step was placed 0.24 s
     // early so and left 1.7× its clean twin's error held out.
-    let jump = |c: &Shaped| {
-        matches!(c.effect, Effect::Offset | Effect::StiffnessDrift) && c.shape.is_finite()
-    };
-    if jump(&b) {
+    if b.is_jump() {
         let rows = fit_rows(train, validate);
         let rss_at = |c: &Shaped| -> f64 {
             let trial = [chosen, &[*c]].concat();
@@ -1539,7 +1536,7 @@ fn search(
         };
         let placed = scored
             .iter()
-            .filter(|(c, _)| c.effect == b.effect && c.on == b.on && jump(c))
+            .filter(|(c, _)| c.effect == b.effect && c.on == b.on && c.is_jump())
             .map(|&(c, e)| (c, e, rss_at(&c)))
             .min_by(|x, y| x.2.total_cmp(&y.2));
         if let Some((c, e, rss)) = placed
@@ -1567,6 +1564,12 @@ impl RowTimes {
         RowTimes { times, median }
     }
 
+    /// Whether two rows adjacent in time, at `a` and `b`, have a gap between them: longer than
+    /// ten median steps (shorter ones are irregular sampling).
+    fn is_gap(&self, a: f64, b: f64) -> bool {
+        b - a > 10.0 * self.median
+    }
+
     /// The gap of the rows (longer than ten median steps) nearest to `t`, if `t` lies in it or
     /// within ten median steps of it: the rows either side. Farther away, the rows between
     /// place the jump (a measured spring's offset found 1.45 s before a block paid off 4.09×
@@ -1576,7 +1579,7 @@ impl RowTimes {
         self.times
             .windows(2)
             .map(|w| (w[0], w[1]))
-            .filter(|(a, b)| b - a > 10.0 * self.median)
+            .filter(|&(a, b)| self.is_gap(a, b))
             .min_by(|x, y| distance(*x).total_cmp(&distance(*y)))
             .filter(|&g| distance(g) <= 10.0 * self.median)
     }
@@ -1588,7 +1591,7 @@ impl RowTimes {
             *self.times.get(after.checked_sub(1)?)?,
             *self.times.get(after)?,
         );
-        (b - a > 10.0 * self.median && t > a && t < b).then_some((a, b))
+        (self.is_gap(a, b) && t > a && t < b).then_some((a, b))
     }
 
     /// A jump at `t` placed where the rows cannot tell: every instant between two rows adjacent
@@ -1608,7 +1611,7 @@ impl RowTimes {
             .iter()
             .filter_map(|&j| after.checked_add_signed(j))
             .filter(|&k| k >= 1 && k < times.len())
-            .find(|&k| times[k] - times[k - 1] > 10.0 * self.median)
+            .find(|&k| self.is_gap(times[k - 1], times[k]))
             .map_or(t, |k| 0.5 * (times[k - 1] + times[k]))
     }
 }
@@ -1620,10 +1623,8 @@ impl RowTimes {
 /// with the instant a priori anywhere in time, the odds of the gap against the instant found
 /// are (G/h)·exp(−ΔRSS/2σ²) — G the gap's length, h the rows' median step, ΔRSS how much
 /// worse the fit rows fit with the jump at the gap, σ² their residual's white noise (from its
-/// fourth differences: with the residual's whole variance, a measured spring's slow misfit
-/// let an offset's instant, 4.09× held out where it was found, go to a block's middle,
-/// 2.53×) — so the jump
-/// moves when ΔRSS ≤ 2σ²·ln(G/h). A large step found three rows past a block's end stays
+/// fourth differences: a slow misfit, a measured spring's, moves the rows either side of an
+/// instant alike) — so the jump moves when ΔRSS ≤ 2σ²·ln(G/h). A large step found three rows past a block's end stays
 /// there (each row it would move costs a step² against σ²); the searches' own instants, which
 /// refine on a grid between the instants tried and need not reach the block's edge, do not
 /// decide it. At the gap's middle the jump is wrong over half the block at most; at its end
@@ -1638,7 +1639,7 @@ fn into_the_gap(
     rows: &[usize],
 ) -> Result<Option<Vec<Shaped>>, IdentifyError> {
     let c = chosen[j];
-    if !(matches!(c.effect, Effect::Offset | Effect::StiffnessDrift) && c.shape.is_finite()) {
+    if !c.is_jump() {
         return Ok(None);
     }
     let Some((a, b)) = gaps.nearest_gap(c.shape) else {
@@ -1658,8 +1659,6 @@ fn into_the_gap(
     moved[j].shape = middle;
     let e_now = residual(chosen)?;
     let (now, there) = (rss(&e_now), rss(&residual(&moved)?));
-    // The noise that places a jump is the white part of the residual: a slow misfit (a
-    // measured spring's) moves the rows either side of an instant alike.
     let variance = signals::white_noise_rms(&e_now).powi(2);
     let odds = ((b - a) / gaps.median).ln();
     Ok((there - now <= 2.0 * variance * odds).then_some(moved))
@@ -1825,20 +1824,12 @@ fn weak_window(raw: &mut Problem, rows: &Rows, opts: &Options) -> Result<f64, Id
 /// rates' estimation give a fit that learned nothing.
 const HELDOUT_LR: f64 = 6.63;
 
-/// Each row's time in its run.
-fn times_in_runs(p: &Problem) -> Vec<f64> {
-    p.runs
-        .iter()
-        .flat_map(|r| r.t.iter().map(move |t| t - r.t[0]))
-        .collect()
-}
-
 /// For a jump (an offset's or a stiffness step's) that sits inside a gap of the fit rows — a
 /// held-out block, where the rows cannot place it — the times of the fit rows either side of
-/// it: the jump is somewhere in between.
-pub(crate) fn held_out_block(p: &Problem, c: &Shaped, fit_rows: &[usize]) -> Option<(f64, f64)> {
-    let jump = matches!(c.effect, Effect::Offset | Effect::StiffnessDrift) && c.shape.is_finite();
-    jump.then(|| RowTimes::of(&times_in_runs(p), fit_rows).holding(c.shape))
+/// it: the jump is somewhere in between. `t_rel` is each row's time in its run.
+pub(crate) fn held_out_block(t_rel: &[f64], c: &Shaped, fit_rows: &[usize]) -> Option<(f64, f64)> {
+    c.is_jump()
+        .then(|| RowTimes::of(t_rel, fit_rows).holding(c.shape))
         .flatten()
 }
 
