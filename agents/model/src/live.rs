@@ -278,7 +278,7 @@ pub fn from_found(found: &[Found], tare: &[Tare]) -> Applied {
     let mut found_encoder = 0.0;
     let mut ripple = None;
     for f in found {
-        let p = |name: &str| f.params.iter().find(|(n, _)| *n == name).map(|(_, v)| *v);
+        let p = |name: &str| f.param(name);
         match (f.effect, f.on) {
             // The tare's own zero, named for the report: already counted above.
             (Effect::Offset, _) if p("from_tare").is_some() => {}

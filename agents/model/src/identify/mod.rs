@@ -199,17 +199,25 @@ pub struct Found {
 }
 
 impl Found {
-    /// A lag whose δ is the bound of the lags searched ([`AT_SEARCH_BOUND`]): not located.
-    pub fn at_search_bound(&self) -> bool {
+    /// The parameter named `name`, if the effect has it.
+    pub fn param(&self, name: &str) -> Option<f64> {
         self.params
             .iter()
-            .any(|&(n, v)| n == AT_SEARCH_BOUND && v != 0.0)
+            .find(|(n, _)| *n == name)
+            .map(|&(_, v)| v)
+    }
+
+    /// A lag whose δ is the bound of the lags searched ([`AT_SEARCH_BOUND`]): not located.
+    pub fn at_search_bound(&self) -> bool {
+        self.param(AT_SEARCH_BOUND).is_some_and(|v| v != 0.0)
     }
 
     /// A jump that lies in a held-out block: the block's ends [s] ([`HELD_OUT_BLOCK_FROM`]).
     pub fn held_out_block(&self) -> Option<(f64, f64)> {
-        let p = |name: &str| self.params.iter().find(|(n, _)| *n == name).map(|p| p.1);
-        Some((p(HELD_OUT_BLOCK_FROM)?, p(HELD_OUT_BLOCK_TO)?))
+        Some((
+            self.param(HELD_OUT_BLOCK_FROM)?,
+            self.param(HELD_OUT_BLOCK_TO)?,
+        ))
     }
 }
 
