@@ -469,11 +469,9 @@ fn a_stop_the_data_barely_passes_on_one_side_is_found_as_one_stop_on_both() {
 /// A parameter of the one effect a case's identification named.
 fn param_of(id: &Identified, name: &str) -> f64 {
     assert_eq!(id.effects.len(), 1, "{:?}", id.effects);
-    let p = &id.effects[0].params;
-    p.iter()
-        .find(|(n, _)| *n == name)
-        .map(|(_, v)| *v)
-        .unwrap_or_else(|| panic!("no {name} in {p:?}"))
+    let e = &id.effects[0];
+    e.param(name)
+        .unwrap_or_else(|| panic!("no {name} in {:?}", e.params))
 }
 
 /// The held-out error of a case's identification within 10 % of its clean twin's.
@@ -545,19 +543,31 @@ fn in_one_file_a_step_inside_a_held_out_block_is_named_and_put_at_the_blocks_mid
     // most of the block, the held-out error rose, and the step was refused: nothing named.
     // At the block's middle it is named, and cuts the held-out error.
     let c = case(Plant::Linear, Some(Inject::TorqueStep), 0, 1000.0, 0.02);
-    let truth = generate(&c, 0).jump_at_s;
-    assert!((7.5..10.0).contains(&truth), "{truth}");
-    let id = identify_one_file(&c);
+    a_jump_in_a_held_out_block_is_named_alone_at_its_middle(&c, (7.5, 10.0));
+}
+
+/// Fitted on its one run with every fourth of twelve blocks held out, a case whose jump lies
+/// in the held-out block `block` [s]: the offset named alone, at the block's middle (within
+/// 10 ms), and the held-out error cut by a fifth at least.
+fn a_jump_in_a_held_out_block_is_named_alone_at_its_middle(
+    c: &Case,
+    block: (f64, f64),
+) -> Identified {
+    let truth = generate(c, 0).jump_at_s;
+    assert!((block.0..block.1).contains(&truth), "{truth}");
+    let id = identify_one_file(c);
     let names: Vec<&str> = id.effects.iter().map(|e| e.effect.name()).collect();
     assert_eq!(names, ["offset"]);
     let at = param_of(&id, "jump_at_s");
-    assert!((at - 8.75).abs() < 0.01, "jump at {at} s");
+    let middle = 0.5 * (block.0 + block.1);
+    assert!((at - middle).abs() < 0.01, "jump at {at} s");
     assert!(
         id.after.rmse < 0.8 * id.before.rmse,
         "held out {} -> {}",
         id.before.rmse,
         id.after.rmse
     );
+    id
 }
 
 #[test]
@@ -568,13 +578,7 @@ fn in_one_file_on_the_lever_a_jump_found_past_a_held_out_blocks_end_is_put_at_it
     // the step was wrong over most of the block and refused (nothing named). The fit rows fit
     // better with the jump anywhere in the block, so it goes to the block's middle.
     let c = case(Plant::Lever, Some(Inject::EncoderSlip), 3, 200.0, 0.02);
-    let truth = generate(&c, 0).jump_at_s;
-    assert!((17.5..20.0).contains(&truth), "{truth}");
-    let id = identify_one_file(&c);
-    let names: Vec<&str> = id.effects.iter().map(|e| e.effect.name()).collect();
-    assert_eq!(names, ["offset"]);
-    let at = param_of(&id, "jump_at_s");
-    assert!((at - 18.75).abs() < 0.01, "jump at {at} s");
+    let id = a_jump_in_a_held_out_block_is_named_alone_at_its_middle(&c, (17.5, 20.0));
     // The report says the jump is somewhere in the block: the fit rows either side of it.
     let (from, to) = (
         param_of(&id, "held_out_block_from_s"),
@@ -583,12 +587,6 @@ fn in_one_file_on_the_lever_a_jump_found_past_a_held_out_blocks_end_is_put_at_it
     assert!(
         (from - 17.5).abs() < 0.01 && (to - 20.0).abs() < 0.01,
         "{from}–{to}"
-    );
-    assert!(
-        id.after.rmse < 0.8 * id.before.rmse,
-        "held out {} -> {}",
-        id.before.rmse,
-        id.after.rmse
     );
 }
 
