@@ -1,20 +1,18 @@
 # Sourced by scripts/identify-springs.sh and scripts/springs-two-fit.sh:
 #   data  the measured springs (first argument, else ../shared/data/sea-torsion-springs)
 #   out   where the reports go (second argument, else $TMPDIR/$out_default)
-#   rig   the rig binary (RIG, else the release build, built if missing)
+#   here, rig  the clone's root and the rig binary (scripts/rig-binary.sh)
 #   each_pair FN  calls FN SPRING AMPLITUDE FIRST SECOND NAME for each spring and amplitude
 #                 with two tests (in the order of their test ids)
 #   identify NAME ARGS…  `rig identify --model linear` on the data README's columns, the
 #                 report at $out/NAME.json; says so and returns 1 when it fails
-here="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
+source "$(dirname "${BASH_SOURCE[0]}")/rig-binary.sh"
 data="${1:-$here/../shared/data/sea-torsion-springs}"
 out="${2:-${TMPDIR:-/tmp}/$out_default}"
-rig="${RIG:-${CARGO_TARGET_DIR:-$here/target}/release/rig}"
 if [ ! -d "$data" ]; then
   echo "no data at $data: put the shared data beside the clone (../shared/data/sea-torsion-springs)" >&2
   exit 2
 fi
-[ -x "$rig" ] || (cd "$here" && cargo build --release -p rig >&2)
 mkdir -p "$out"
 
 each_pair() {

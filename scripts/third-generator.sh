@@ -1,21 +1,22 @@
 #!/bin/bash
 # third-generator.sh OUT SEEDS [EFFECT...]: `rig identify --model linear` on the third generator's
 # cases (scripts/third-generator.py), fitted on one run and scored on the other: one line per
-# case with the held-out RMSE after/before and the effects named. RIG: the rig binary to use.
-# SAMEJUMP=1: a jump at the same instant in both runs.
+# case with the held-out RMSE after/before and the effects named (a case `rig identify` fails
+# on is said, its log kept). The rig binary: scripts/rig-binary.sh. SAMEJUMP=1: a jump at the
+# same instant in both runs.
 set -euo pipefail
-HERE=$(cd "$(dirname "$0")" && pwd)
+source "$(dirname "$0")/rig-binary.sh"
 OUT=$1; S=$2; shift 2
 EFF=${*:-none backlash hysteresis lag slip tstep drift kstep stop coulomb viscous ripple}
-RIG=${RIG:-$HERE/../target/release/rig}
 for e in $EFF; do for s in $(seq 0 $((S-1))); do
-  d=$OUT/$e-$s; python3 "$HERE/third-generator.py" $d $e $s
-  $RIG identify --model linear --data $d/fit.csv --holdout $d/ho.csv --report $d/r.json > $d/log 2>&1
-  python3 - $d <<'PY'
+  d=$OUT/$e-$s; python3 "$here/scripts/third-generator.py" "$d" "$e" "$s"
+  "$rig" identify --model linear --data "$d/fit.csv" --holdout "$d/ho.csv" --report "$d/r.json" \
+    > "$d/log" 2>&1 || { echo "$e-$s: rig identify failed, see $d/log" >&2; continue; }
+  python3 - "$d" <<'PY'
 import json,sys,ast
 d=sys.argv[1]; r=json.load(open(d+'/r.json')); t=ast.literal_eval(open(d+'/truth.txt').read())
 names=[x['name']+('('+x['params'].get('on','')+')' if 'on' in x.get('params',{}) else '') for x in r['effects']]
-b=r['before']['rmse'] if isinstance(r['before'],dict) else r['before']; a=r['after']['rmse'] if isinstance(r['after'],dict) else r['after']
+b, a = r['before']['rmse'], r['after']['rmse']
 print(f"{d.split('/')[-1]:14s} {t['rate']:5d}Hz {t['fit_motion']:9s}/{t['ho_motion']:9s} n={t['noise']/t['tau_pk']:.3f} c={t['counts']:5d}  after/before {a/b:.3f}  {names}")
 PY
 done; done
