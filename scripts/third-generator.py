@@ -7,10 +7,16 @@ jump (torque step, encoder slip, stiffness step) at another instant in the held-
 SAMEJUMP=1. Python's standard library only.
 
 Usage: third-generator.py OUTDIR EFFECT SEED  -> OUTDIR/fit.csv, OUTDIR/ho.csv, OUTDIR/truth.txt
-EFFECT: none backlash hysteresis lag slip tstep drift kstep stop coulomb viscous ripple
+       third-generator.py --effects              -> the EFFECT names
 """
 import math, random, sys, os
 
+EFFECTS = "none backlash hysteresis lag slip tstep drift kstep stop coulomb viscous ripple".split()
+if sys.argv[1:] == ["--effects"]:
+    sys.exit(print(" ".join(EFFECTS)))
+if len(sys.argv) != 4 or sys.argv[2] not in EFFECTS or not sys.argv[3].isdigit():
+    sys.exit(f"usage: third-generator.py OUTDIR EFFECT SEED (EFFECT one of {', '.join(EFFECTS)}; "
+             f"SEED a whole number), not {' '.join(sys.argv[1:])!r}")
 out, effect, seed = sys.argv[1], sys.argv[2], int(sys.argv[3])
 rng = random.Random(1000 * seed + sum(map(ord, effect)))
 os.makedirs(out, exist_ok=True)

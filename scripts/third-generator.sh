@@ -7,7 +7,7 @@
 set -euo pipefail
 source "$(dirname "$0")/rig-binary.sh"
 OUT=$1; S=$2; shift 2
-EFF=${*:-none backlash hysteresis lag slip tstep drift kstep stop coulomb viscous ripple}
+EFF=${*:-$(python3 "$here/scripts/third-generator.py" --effects)}
 for e in $EFF; do for s in $(seq 0 $((S-1))); do
   d=$OUT/$e-$s; python3 "$here/scripts/third-generator.py" "$d" "$e" "$s"
   "$rig" identify --model linear --data "$d/fit.csv" --holdout "$d/ho.csv" --report "$d/r.json" \
