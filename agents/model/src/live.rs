@@ -526,6 +526,7 @@ mod tests {
             params,
             gain_rmse: 0.0,
             validation_gain: 0.0,
+            held_out_at_s: vec![],
         }
     }
 

@@ -556,6 +556,7 @@ fn report_json(
             "gain_rmse": num(e.gain_rmse),
             "validation_gain": num(e.validation_gain),
             "meaning": e.effect.meaning(),
+            "held_out_at_s": e.held_out_at_s.iter().map(|(file, at)| json!({"file": file, "at_s": at.map(num)})).collect::<Vec<_>>(),
         })).collect::<Vec<_>>(),
         "refused": res.refused.iter().map(|r| json!({"name": r.effect.name(), "best_validation_gain": num(r.best_gain), "why": r.why})).collect::<Vec<_>>(),
         "not_applicable": res.not_applicable.iter().map(|(e, why)| json!({"name": e.name(), "why": why})).collect::<Vec<_>>(),
@@ -605,8 +606,17 @@ fn effect_line(e: &rig_model::identify::Found) -> String {
         .collect();
     let on =
         e.on.map_or(String::new(), |o| format!(" on the {}", o.name()));
+    // A jump's instant in each held-out file, read from that file.
+    let held: String = e
+        .held_out_at_s
+        .iter()
+        .map(|(file, at)| match at {
+            Some(t) => format!("; in the held-out {file} at {} s", sig(*t)),
+            None => format!("; none in the held-out {file}"),
+        })
+        .collect();
     format!(
-        "{}{on} ({}): held-out RMSE lower by {} N·m",
+        "{}{on} ({}){held}: held-out RMSE lower by {} N·m",
         e.effect.name(),
         p.join(", "),
         sig(e.gain_rmse)

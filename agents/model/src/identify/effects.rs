@@ -226,7 +226,7 @@ impl Shaped {
     fn raw_columns(&self, s: &Signals) -> Vec<(Vec<f64>, Bound)> {
         let xs = &s.xs;
         let r = self.shape;
-        let step = |tj: f64| -> Vec<f64> { s.t_rel.iter().map(|&t| f64::from(t >= tj)).collect() };
+        let step = |tj: f64| s.step(tj);
         match self.effect {
             Effect::Hysteresis => s
                 .widths
@@ -320,11 +320,10 @@ impl Shaped {
                 .elastic
                 .iter()
                 .map(|c| {
-                    let col = c.iter().zip(&s.t_rel);
                     let col = if r.is_finite() {
-                        col.map(|(v, &t)| v * f64::from(t >= r)).collect()
+                        c.iter().zip(s.step(r)).map(|(v, h)| v * h).collect()
                     } else {
-                        col.map(|(v, t)| v * t).collect()
+                        c.iter().zip(&s.t_rel).map(|(v, t)| v * t).collect()
                     };
                     (col, Bound::Free)
                 })

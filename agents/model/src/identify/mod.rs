@@ -196,6 +196,10 @@ pub struct Found {
     pub gain_rmse: f64,
     /// The relative drop of the validation RMSE that selected it.
     pub validation_gain: f64,
+    /// For a jump (`jump_at_s` among the params, fitted on the fit files): the instant each
+    /// held-out file took it, read from that file as its tare is [s in the file]; `None`: the
+    /// file has none. Empty for other effects or without held-out files.
+    pub held_out_at_s: Vec<(String, Option<f64>)>,
 }
 
 impl Found {
@@ -456,10 +460,15 @@ pub fn identify(
     // One frame for every run, its zero at the first fit run's rest (where a gap or a stop is
     // centred): each run's deflection is shifted by `frame[k]`.
     // `read_after[k]`: the run whose end run k was read from, if it was.
+    // `other_frame[k]`: what reads run k as measured instead, where its frame was carried.
+    let mut other_frame: Vec<f64> = Vec::new();
     let (frame, read_after): (Vec<f64>, Vec<Option<String>>) = match &loop_rests {
         Some(_) => {
             let x0 = tare[0].deflection_zero;
             let (fit_shift, held_shift) = states::continuity(fit_runs, held, before.part(0)[0]);
+            other_frame = (fit_shift.iter().map(|_| 0.0))
+                .chain(held_shift.iter().map(|d| -d.unwrap_or(0.0)))
+                .collect();
             let last = fit_runs.len().saturating_sub(1);
             let before_run = (0..fit_runs.len())
                 .map(|k| k.saturating_sub(1))
@@ -486,6 +495,7 @@ pub fn identify(
         p.denoise(torque_per_rad, torque_noise);
         // A shift of the deflection leaves each rest's samples where they were.
         p.loop_rests = loop_rests;
+        p.other_frames = other_frame;
         let base = states::settle(&mut p, &[], &rows)?;
         (p, base)
     } else if tare.is_empty() {
@@ -559,8 +569,10 @@ pub fn identify(
         // What the rule took as each run's zeros, and the state it read at rest.
         for (k, t) in tare.iter_mut().enumerate() {
             t.torque_zero = p.shifts[k];
-            t.deflection_zero = -frame[k];
-            t.read_after = read_after[k].clone();
+            // A held-out run read as measured after all (`states::settle`) was not read
+            // from the fit run's end.
+            t.deflection_zero = -(frame[k] + p.frame(k));
+            t.read_after = read_after[k].clone().filter(|_| p.frame(k) == 0.0);
             t.loop_state = Some(states[k]);
         }
     }
@@ -594,6 +606,7 @@ pub fn identify(
                 params: vec![("bias_nm", zero), ("from_tare", 1.0)],
                 gain_rmse: rmse(&e_before) - rmse(&e_tared),
                 validation_gain: f64::NAN,
+                held_out_at_s: vec![],
             });
         }
     }
@@ -613,6 +626,16 @@ pub fn identify(
         },
         gain_rmse: held_errs[k] - held_errs[k + 1],
         validation_gain: kept_gains[k],
+        held_out_at_s: if c.is_jump() {
+            (p.fit_runs..p.runs.len())
+                .map(|run| {
+                    let at = p.jump_instant(run, c.shape);
+                    (p.runs[run].name.clone(), at.is_finite().then_some(at))
+                })
+                .collect()
+        } else {
+            vec![]
+        },
     }));
     refused.extend(
         not_added

@@ -2,7 +2,7 @@
 //! columns of the added effects, with coefficients fitted by bounded least squares.
 
 use super::effects::{Effect, Place, Shaped};
-use super::rows::{Problem, Role};
+use super::rows::{Problem, Role, jump_in};
 use super::signals::{self, dead_zone};
 use super::stats::{Bound, bounded_least_squares, combine, rmse};
 use super::{Declared, IdentifyError};
@@ -42,6 +42,15 @@ impl Transform {
             Some((tj, d)) if tj.is_nan() || t >= tj => d,
             _ => 0.0,
         }
+    }
+
+    /// As it acts in one run: an encoder slip at the run's own instant (`instant` of the
+    /// fitted one, see [`Problem::jumps`]).
+    pub fn in_run(mut self, instant: impl Fn(f64) -> f64) -> Self {
+        if let Some((tj, d)) = self.slip.filter(|(tj, _)| tj.is_finite()) {
+            self.slip = Some((instant(tj), d));
+        }
+        self
     }
 
     /// With one more (or a replaced) input effect.
@@ -107,6 +116,8 @@ pub struct Signals {
     /// The weak form (the link equation): the smoother's half-support [s] and each run's
     /// sampling step [s]; every effect's column is smoothed as the torque was.
     pub(crate) weak: Option<(f64, Vec<f64>)>,
+    /// Each run's own jump instants ([`Problem::jumps`]).
+    pub(crate) jumps: Vec<Vec<(f64, f64)>>,
 }
 
 impl Signals {
@@ -118,6 +129,18 @@ impl Signals {
                 self.per_run_k(|k, a, b| signals::weak_smooth(&col[a..b], *h, dts[k]))
             }
         }
+    }
+
+    /// The step 1[t ≥ t_j] of a jump fitted at `tj` [s in the run], each run's at its own
+    /// instant.
+    pub(crate) fn step(&self, tj: f64) -> Vec<f64> {
+        self.per_run_k(|k, a, b| {
+            let at = jump_in(&self.jumps, k, tj);
+            self.t_rel[a..b]
+                .iter()
+                .map(|&t| f64::from(t >= at))
+                .collect()
+        })
     }
 
     /// A column built run by run (stateful operators restart at each run).
@@ -163,12 +186,17 @@ impl Problem {
             bounds: self.bounds.clone(),
             states: self.states.clone(),
             weak: self.weak().then(|| (self.rate_window, self.steps.clone())),
+            jumps: self.jumps.clone(),
         };
         let mut q_all = Vec::new();
         for (k, r) in self.runs.iter().enumerate() {
             let n = r.t.len();
             let xs = if joint { r.phi.as_ref() } else { r.q.as_ref() };
-            let x = signals::shifted(&r.t, xs.map_or(&[][..], Vec::as_slice), tr.delay);
+            let mut x = signals::shifted(&r.t, xs.map_or(&[][..], Vec::as_slice), tr.delay);
+            if joint {
+                let frame = self.frame(k);
+                x.iter_mut().for_each(|v| *v += frame);
+            }
             // The rates of x(t − δ) are the rates at t − δ: shifted, not computed again.
             let (v, a) = (
                 signals::shifted(&r.t, &self.rates[k].0, tr.delay),
@@ -210,9 +238,10 @@ impl Problem {
             let t0 = r.t[0];
             s.duration = s.duration.max(r.t[n - 1] - t0);
             s.t_rel.extend(r.t.iter().map(|t| t - t0));
+            let tr_k = tr.in_run(|tj| jump_in(&self.jumps, k, tj));
             s.xs.extend(x.iter().zip(&r.t).map(|(&v, &t)| {
                 if joint {
-                    dead_zone(v + tr.slip_at(t - t0), tr.gap)
+                    dead_zone(v + tr_k.slip_at(t - t0), tr.gap)
                 } else {
                     v
                 }
@@ -348,8 +377,10 @@ fn loop_samples(
     let mut samples = Vec::with_capacity(rows.len());
     let mut at = Vec::with_capacity(rows.len());
     let mut offset = 0;
-    for r in &p.runs {
+    for (run, r) in p.runs.iter().enumerate() {
         let n = r.t.len();
+        let tr = tr.in_run(|tj| p.jump_instant(run, tj));
+        let frame = p.frame(run);
         let phi = signals::shifted(
             &r.t,
             r.phi.as_ref().map_or(&[][..], Vec::as_slice),
@@ -360,7 +391,7 @@ fn loop_samples(
             let i = offset + k;
             if rows.binary_search(&i).is_ok() {
                 samples.push(FitSample {
-                    phi: dead_zone(phi[k] + tr.slip_at(r.t[k] - r.t[0]), tr.gap),
+                    phi: dead_zone(phi[k] + frame + tr.slip_at(r.t[k] - r.t[0]), tr.gap),
                     tau: target[i],
                     d: d.as_ref().map_or(0.0, |d| d[k]),
                 });

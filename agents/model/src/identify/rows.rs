@@ -244,9 +244,39 @@ pub(crate) struct Problem {
     pub tared: bool,
     /// Each run's torque zero under the loop-state rule: what the loop cannot hold at rest.
     pub shifts: Vec<f64>,
+    /// Where each run takes the jumps it does not take at their fitted instant: per run,
+    /// (the jump's fitted instant, the run's own [s in the run]; +∞: the run has none). A
+    /// held-out run's own instant is read from it as a state ([`super::states::settle`]).
+    pub jumps: Vec<Vec<(f64, f64)>>,
+    /// What each run's deflection is read with, added to it [rad] (none listed: 0): a
+    /// held-out run's frame, chosen by [`super::states::settle`] between the frame it was
+    /// given and `other_frames`.
+    pub frames: Vec<f64>,
+    /// For each held-out run whose encoder frame was carried from the fit runs
+    /// ([`super::states::continuity`]): the shift that reads it as measured instead (0: none).
+    pub other_frames: Vec<f64>,
+}
+
+/// When run `k` takes the jump fitted at `tj` [s in the run]: its own instant where `jumps`
+/// (see [`Problem::jumps`]) holds one, else `tj`.
+pub(crate) fn jump_in(jumps: &[Vec<(f64, f64)>], k: usize, tj: f64) -> f64 {
+    jumps
+        .get(k)
+        .and_then(|js| js.iter().find(|(at, _)| *at == tj))
+        .map_or(tj, |(_, own)| *own)
 }
 
 impl Problem {
+    /// When run `k` takes the jump fitted at `tj` [s in the run] ([`Self::jumps`]).
+    pub(crate) fn jump_instant(&self, k: usize, tj: f64) -> f64 {
+        jump_in(&self.jumps, k, tj)
+    }
+
+    /// What run `k`'s deflection is read with ([`Self::frames`]) [rad].
+    pub(crate) fn frame(&self, k: usize) -> f64 {
+        self.frames.get(k).copied().unwrap_or(0.0)
+    }
+
     /// Concatenates the runs (already checked) and assigns roles: whole held-out runs, or
     /// every fourth of `blocks` time blocks of each fit run; of the fit rows, every fourth
     /// block validates.
@@ -350,6 +380,9 @@ impl Problem {
             tared: false,
             states: None,
             shifts: vec![],
+            jumps: vec![],
+            frames: vec![],
+            other_frames: vec![],
         };
         p.set_rate_window(opts.rate_window.unwrap_or(0.02));
         // Hysteresis: stops from ten dead bands (narrower is Coulomb friction) to half the

@@ -16,6 +16,11 @@
 //! run is read in its frame, shifted by where it ends unloaded (its last deflection less its
 //! last torque over the linear stiffness).
 //!
+//! Two more readings are each held-out run's own, for any declared model ([`settle`]): whether
+//! a run read from the fit run's end is read so or as measured (whichever predicts it better),
+//! and the instant at which it takes each jump the fit found (or none): a test slips or steps
+//! when it does.
+//!
 //! The rule applies to the linear spring (the springs' model) when every run starts at rest;
 //! the fit runs' states are refined with the fit (three rounds), the held-out runs' are set
 //! from the final coefficients: the held-out data chooses a state as a tare chooses zeros, never
@@ -116,14 +121,146 @@ pub(crate) fn shifted(r: &Run, shift: f64) -> Run {
     out
 }
 
-/// The fit of `trial` on the fit rows with each run's state set from its rest (module docs),
-/// its prediction on held-out rows carrying their torque zeros. Sets `p.states` and
-/// `p.shifts`. Without rests to read (`p.loop_rests` unset), the plain fit.
+/// The fit of `trial` on the fit rows with each held-out run's states read from that run:
+/// its loop's state and torque zero from its rest ([`settle_rests`]), and the instant of
+/// each jump in `trial` ([`read_jumps`]). Sets `p.states`, `p.shifts` and `p.jumps`.
 pub(crate) fn settle(
     p: &mut Problem,
     trial: &[Shaped],
     rows: &Rows,
 ) -> Result<Fitted, IdentifyError> {
+    p.jumps.clear();
+    p.frames.clear();
+    let mut f = settle_rests(p, trial, rows)?;
+    if choose_frames(p, trial, rows, &f)? {
+        f = settle_rests(p, trial, rows)?;
+    }
+    if read_jumps(p, trial, rows)? {
+        f = settle_rests(p, trial, rows)?;
+    }
+    Ok(f)
+}
+
+/// For each held-out run whose encoder frame was carried from the fit runs (`p.other_frames`):
+/// that frame or the run as measured, whichever predicts the run better with the fit's
+/// coefficients (`f`: the prediction in the carried frames); sets `p.frames`, and says
+/// whether any run is read as measured. The carried frame is a reading of the test protocol
+/// (module docs) that a run zeroed at its start may not share: a generator or a lab that
+/// zeroes every test at the same unloaded point puts a gap's centre at zero in every run, and
+/// read from where the fit run ended (one edge of the gap) the run was shifted by up to the
+/// gap's half-width. At rest both readings fit alike; the motion tells them apart. One bit per
+/// run, chosen as a tare's zeros are, never a coefficient.
+fn choose_frames(
+    p: &mut Problem,
+    trial: &[Shaped],
+    rows: &Rows,
+    f: &Fitted,
+) -> Result<bool, IdentifyError> {
+    if p.other_frames.iter().all(|d| *d == 0.0) {
+        return Ok(false);
+    }
+    // The carried frames' states and zeros, which `f` was predicted with.
+    let carried = (p.states.clone(), p.shifts.clone());
+    p.frames = p.other_frames.clone();
+    let g = settle_rests(p, trial, rows)?;
+    let mut any = false;
+    for k in p.fit_runs..p.runs.len() {
+        let run = within(&rows.held, p.bounds[k]);
+        let sse = |h: &Fitted| -> f64 { h.residual_on(&p.tau, run).iter().map(|e| e * e).sum() };
+        if p.frame(k) != 0.0 && sse(&g) < sse(f) {
+            any = true;
+        } else if let Some(d) = p.frames.get_mut(k) {
+            *d = 0.0;
+        }
+    }
+    if !any {
+        (p.states, p.shifts) = carried;
+    }
+    Ok(any)
+}
+
+/// Each held-out run's own instant for each jump in `trial` (an offset's step, an encoder
+/// slip, a stiffness step), set in `p.jumps`; whether any moved. A jump is an event of a run,
+/// not a property of the spring: a test slips or steps when it does. So, as a tare reads a
+/// run's zeros, each held-out run's instant is read from its own samples, with the size fitted
+/// on the fit runs: the instant (from 2 % to 98 % of the run, as the fit side searches) that
+/// lowers the run's squared error most, or none where no instant lowers it. Searching one
+/// instant for a step of fixed size d gains more than x·σ² on pure noise with probability
+/// about e^(−x/2) (the supremum of a random walk with drift −d/2), so the held-out check asks
+/// such a jump for 2·ln 100 = 9.21 rather than χ²₁'s 6.63: 1 % either way, after the jump has
+/// passed the fit rows' selection.
+///
+/// The error with the jump at t is the error without it less Σ_{s≥t} (2·e₀·Δ − Δ²), e₀ the
+/// residual without the jump and Δ what the jump adds (the prediction with it throughout the
+/// run less without it): exact for a torque or stiffness step and for a slip through a model
+/// without memory; the prediction is then made again at the chosen instant. The jumps are read
+/// one after another, each with those before it placed.
+fn read_jumps(p: &mut Problem, trial: &[Shaped], rows: &Rows) -> Result<bool, IdentifyError> {
+    let held: Vec<usize> = (p.fit_runs..p.runs.len()).collect();
+    let jumps: Vec<f64> = trial
+        .iter()
+        .filter(|c| c.is_jump())
+        .map(|c| c.shape)
+        .collect();
+    if held.is_empty() || jumps.is_empty() {
+        return Ok(false);
+    }
+    let tr = Transform::of(trial);
+    p.jumps = vec![Vec::new(); p.runs.len()];
+    let mut moved = false;
+    for &tj in &jumps {
+        // The held-out runs' prediction with this jump at `at` (the fit rows, and so the
+        // coefficients, are unchanged).
+        let with_jump_at = |p: &mut Problem, at: f64| -> Result<Vec<f64>, IdentifyError> {
+            for &k in &held {
+                place(&mut p.jumps[k], tj, at);
+            }
+            let f = fit(&p.signals(tr), trial, &p.tau, &rows.fit).ok_or(IdentifyError::Solve)?;
+            Ok(f.prediction)
+        };
+        let without = with_jump_at(p, f64::INFINITY)?;
+        let throughout = with_jump_at(p, f64::NEG_INFINITY)?;
+        for &k in &held {
+            let (a, b) = p.bounds[k];
+            let zero = p.shifts.get(k).copied().unwrap_or(0.0);
+            let run = &p.runs[k];
+            let (t0, duration) = (run.t[0], run.t[run.t.len() - 1] - run.t[0]);
+            // Σ_{s≥t} (2·e₀·Δ − Δ²) from the run's end back, the best instant kept.
+            let (mut gain, mut best) = (0.0, (0.0, f64::INFINITY));
+            for &i in within(&rows.held, (a, b)).iter().rev() {
+                let e0 = p.tau[i] - without[i] - zero;
+                let d = throughout[i] - without[i];
+                gain += 2.0 * e0 * d - d * d;
+                let t = run.t[i - a] - t0;
+                let inside = t > 0.02 * duration && t < 0.98 * duration;
+                if inside && gain > best.0 {
+                    best = (gain, t);
+                }
+            }
+            place(&mut p.jumps[k], tj, best.1);
+            moved |= best.1 != tj;
+        }
+    }
+    Ok(moved)
+}
+
+/// The rows (in order) that lie in the run of rows `a..b`.
+fn within(rows: &[usize], (a, b): (usize, usize)) -> &[usize] {
+    &rows[rows.partition_point(|&i| i < a)..rows.partition_point(|&i| i < b)]
+}
+
+/// Sets the run's own instant `at` for the jump fitted at `tj`.
+fn place(run: &mut Vec<(f64, f64)>, tj: f64, at: f64) {
+    match run.iter_mut().find(|(fitted, _)| *fitted == tj) {
+        Some(j) => j.1 = at,
+        None => run.push((tj, at)),
+    }
+}
+
+/// The fit of `trial` on the fit rows with each run's state set from its rest (module docs),
+/// its prediction on held-out rows carrying their torque zeros. Sets `p.states` and
+/// `p.shifts`. Without rests to read (`p.loop_rests` unset), the plain fit.
+fn settle_rests(p: &mut Problem, trial: &[Shaped], rows: &Rows) -> Result<Fitted, IdentifyError> {
     let tr = Transform::of(trial);
     let fit_once = |p: &Problem| -> Result<(Signals, Fitted), IdentifyError> {
         let s = p.signals(tr);
@@ -257,13 +394,7 @@ mod tests {
                 k * x + h + 1e-3 * ((i * 7919) % 13) as f64 / 13.0
             })
             .collect();
-        Run {
-            name: name.into(),
-            t,
-            tau,
-            phi: Some(phi),
-            ..Run::default()
-        }
+        named(name, t, tau, phi)
     }
 
     fn linear(loop_states: bool) -> Options {
@@ -304,14 +435,20 @@ mod tests {
         );
     }
 
-    fn run(phi: Vec<f64>, tau: Vec<f64>) -> Run {
+    /// A run of deflection and torque samples at the times `t`.
+    fn named(name: &str, t: Vec<f64>, tau: Vec<f64>, phi: Vec<f64>) -> Run {
         Run {
-            name: "r".into(),
-            t: (0..phi.len()).map(|i| i as f64 * 0.01).collect(),
+            name: name.into(),
+            t,
             tau,
             phi: Some(phi),
             ..Run::default()
         }
+    }
+
+    fn run(phi: Vec<f64>, tau: Vec<f64>) -> Run {
+        let t = (0..phi.len()).map(|i| i as f64 * 0.01).collect();
+        named("r", t, tau, phi)
     }
 
     /// A test zeroed at its start (first reading 0): a swing of ±0.1 rad through a 10 N·m/rad
@@ -369,6 +506,116 @@ mod tests {
             h,
             vec![None],
             "a fit run not zeroed at its start gives no chain"
+        );
+    }
+    /// A linear spring (20 N·m/rad) seen through a gap of half-width `gap` in series, 200 Hz:
+    /// 4 s at rest with the encoder zeroed at the gap's centre, then a two-tone swing of
+    /// ±0.08 rad about it for 30 s more, ending at rest at `end_x`; a torque step of `step` N·m
+    /// at `step_at` s (none: NaN); uniform noise of ±[`NOISE`] (0.4 % of the peak torque rms).
+    fn geared(name: &str, gap: f64, phase: f64, end_x: f64, step: f64, step_at: f64) -> Run {
+        let (secs, seed) = (30.0, (phase * 1e6) as u64);
+        let n = ((4.0 + secs + 2.0) * 200.0) as usize;
+        let t: Vec<f64> = (0..n).map(|i| i as f64 / 200.0).collect();
+        let phi: Vec<f64> = t
+            .iter()
+            .map(|&t| {
+                let m = t - 4.0;
+                if m <= 0.0 {
+                    0.0
+                } else if m >= secs {
+                    end_x
+                } else {
+                    let env = (std::f64::consts::PI * m / secs).sin();
+                    let swing =
+                        0.08 * env * (0.7 * (1.3 * m + phase).sin() + 0.3 * (3.7 * m).sin());
+                    swing + end_x * (m / secs).powi(4)
+                }
+            })
+            .collect();
+        let tau = phi
+            .iter()
+            .zip(&t)
+            .enumerate()
+            .map(|(i, (&x, &t))| {
+                let inside = if x.abs() <= gap {
+                    0.0
+                } else {
+                    x - gap * x.signum()
+                };
+                let jump = if t >= step_at { step } else { 0.0 };
+                20.0 * inside + jump + NOISE * uniform(i as u64 + seed)
+            })
+            .collect();
+        named(name, t, tau, phi)
+    }
+
+    /// Half the range of the uniform torque noise of [`geared`] [N·m] (rms 5.8 mN·m).
+    const NOISE: f64 = 0.01;
+
+    /// A uniform number in [−1, 1) from `i` (SplitMix64's mixer).
+    fn uniform(i: u64) -> f64 {
+        let mut z = i.wrapping_add(0x9E37_79B9_7F4A_7C15);
+        z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
+        z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
+        z ^= z >> 31;
+        2.0 * (z >> 11) as f64 / (1u64 << 53) as f64 - 1.0
+    }
+
+    #[test]
+    fn a_held_out_runs_torque_step_is_read_at_its_own_instant_and_a_run_without_one_reads_none() {
+        // The fit run steps 0.2 N·m at 15 s; one held-out run steps at 24 s, the other not.
+        let fit = [geared("fit", 0.0, 0.0, 0.0, 0.2, 15.0)];
+        let held = [
+            geared("later", 0.0, 1.0, 0.0, 0.2, 24.0),
+            geared("none", 0.0, 2.0, 0.0, 0.0, f64::NAN),
+        ];
+        let r = identify(&fit, Holdout::Runs(&held), &linear(true), &mut |_, _| {}).unwrap();
+        let names: Vec<_> = r.effects.iter().map(|e| e.effect).collect();
+        assert_eq!(names, vec![Effect::Offset], "{:?}", r.effects);
+        let at = &r.effects[0].held_out_at_s;
+        assert_eq!(at.len(), 2, "{at:?}");
+        let later = at[0].1.expect("the later run's step read");
+        assert!(
+            (later - 24.0).abs() < 0.02,
+            "read at {later} s, made at 24 s"
+        );
+        assert_eq!(at[1], ("none".to_string(), None));
+        // Read at the fitted 15 s instead, both held-out runs would carry a 0.2 N·m error
+        // for 9 s or 30 s; read, only the noise (rms NOISE/√3) is left.
+        let floor = NOISE / 3f64.sqrt();
+        assert!(
+            r.after.rmse < 1.05 * floor && r.before.rmse > 10.0 * floor,
+            "held-out RMSE {} → {}, the noise's {floor}",
+            r.before.rmse,
+            r.after.rmse
+        );
+    }
+
+    #[test]
+    fn a_held_out_run_zeroed_where_the_fit_run_did_not_leave_the_spring_is_read_as_measured() {
+        // A gap of ±10 mrad; every run's encoder zeroed at its centre. The fit run ends at rest
+        // at +8 mrad, inside the gap and unloaded: read from there, the held-out run would be
+        // 8 mrad off, its gap no longer where the fit run found it.
+        let fit = [geared("fit", 0.01, 0.0, 0.008, 0.0, f64::NAN)];
+        let held = [geared("held", 0.01, 1.0, 0.0, 0.0, f64::NAN)];
+        let r = identify(&fit, Holdout::Runs(&held), &linear(true), &mut |_, _| {}).unwrap();
+        let names: Vec<_> = r.effects.iter().map(|e| e.effect).collect();
+        assert_eq!(names, vec![Effect::Backlash], "{:?}", r.effects);
+        let t = &r.tare[1];
+        assert_eq!(
+            t.read_after, None,
+            "read as measured, not from the fit run's end"
+        );
+        assert!(
+            t.deflection_zero.abs() < 1e-3,
+            "deflection zero {}",
+            t.deflection_zero
+        );
+        assert!(
+            r.after.rmse < 0.1 * r.before.rmse,
+            "held-out RMSE {} → {}",
+            r.before.rmse,
+            r.after.rmse
         );
     }
 }
