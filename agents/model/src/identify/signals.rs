@@ -547,6 +547,17 @@ pub fn steps(x: &[f64]) -> usize {
     count
 }
 
+/// Uniform numbers in [0, 1) from a tiny LCG: the identify tests' own, reproducible noise.
+#[cfg(test)]
+pub(crate) fn uniforms(mut state: u64) -> impl FnMut() -> f64 {
+    move || {
+        state = state
+            .wrapping_mul(6364136223846793005)
+            .wrapping_add(1442695040888963407);
+        (state >> 11) as f64 / (1u64 << 53) as f64
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -799,16 +810,6 @@ mod tests {
         assert_eq!(steps(&x), 2);
         let smooth: Vec<f64> = (0..200).map(|i| (i as f64 * 0.05).sin()).collect();
         assert_eq!(steps(&smooth), 0);
-    }
-
-    /// Uniform numbers in [0, 1) from a tiny LCG: the tests' own, reproducible noise.
-    fn uniforms(mut state: u64) -> impl FnMut() -> f64 {
-        move || {
-            state = state
-                .wrapping_mul(6364136223846793005)
-                .wrapping_add(1442695040888963407);
-            (state >> 11) as f64 / (1u64 << 53) as f64
-        }
     }
 
     #[test]

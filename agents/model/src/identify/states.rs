@@ -373,6 +373,7 @@ fn at_rest(
 
 #[cfg(test)]
 mod tests {
+    use super::super::signals::uniforms;
     use super::super::{Holdout, Options, identify};
     use super::*;
 
@@ -524,7 +525,8 @@ mod tests {
     /// ±0.08 rad about it for 30 s more, ending at rest at `end_x`; a torque step of `step` N·m
     /// at `step_at` s (none: NaN); uniform noise of ±[`NOISE`] (0.4 % of the peak torque rms).
     fn geared(name: &str, gap: f64, phase: f64, end_x: f64, step: f64, step_at: f64) -> Run {
-        let (secs, seed) = (30.0, (phase * 1e6) as u64);
+        let secs = 30.0;
+        let mut uniform = uniforms((phase * 1e6) as u64);
         let n = ((4.0 + secs + 2.0) * 200.0) as usize;
         let t: Vec<f64> = (0..n).map(|i| i as f64 / 200.0).collect();
         let phi: Vec<f64> = t
@@ -546,15 +548,14 @@ mod tests {
         let tau = phi
             .iter()
             .zip(&t)
-            .enumerate()
-            .map(|(i, (&x, &t))| {
+            .map(|(&x, &t)| {
                 let inside = if x.abs() <= gap {
                     0.0
                 } else {
                     x - gap * x.signum()
                 };
                 let jump = if t >= step_at { step } else { 0.0 };
-                20.0 * inside + jump + NOISE * uniform(i as u64 + seed)
+                20.0 * inside + jump + NOISE * (2.0 * uniform() - 1.0)
             })
             .collect();
         named(name, t, tau, phi)
@@ -562,15 +563,6 @@ mod tests {
 
     /// Half the range of the uniform torque noise of [`geared`] [N·m] (rms 5.8 mN·m).
     const NOISE: f64 = 0.01;
-
-    /// A uniform number in [−1, 1) from `i` (SplitMix64's mixer).
-    fn uniform(i: u64) -> f64 {
-        let mut z = i.wrapping_add(0x9E37_79B9_7F4A_7C15);
-        z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
-        z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
-        z ^= z >> 31;
-        2.0 * (z >> 11) as f64 / (1u64 << 53) as f64 - 1.0
-    }
 
     #[test]
     fn a_held_out_runs_torque_step_is_read_at_its_own_instant_and_a_run_without_one_reads_none() {
