@@ -1918,19 +1918,19 @@ pub(crate) fn with_heldout_veto(
                 }
             }
             // Each held-out run's state and zeros from its rest, when the rests are states.
-            let f = super::states::settle(p, &trial, rows)?;
+            let (fixed, read) = super::states::settle_both(p, &trial, rows)?;
             let (rss0, _) = rss_and_neff(p, &last, &rows.held);
-            let (rss1, n_eff) = rss_and_neff(p, &f, &rows.held);
-            let read = c.is_jump() && p.fit_runs < p.runs.len();
-            let passes = if read {
-                n_eff * (rss0 / rss1).ln() > HELDOUT_LR_SEARCHED || {
-                    let fixed = super::states::settle_with(p, &trial, rows, false)?;
-                    let (rss1, n_eff) = rss_and_neff(p, &fixed, &rows.held);
-                    n_eff * (rss0 / rss1).ln() > HELDOUT_LR
-                }
-            } else {
-                n_eff * (rss0 / rss1).ln() > HELDOUT_LR
+            let ratio = |f: &Fitted| -> f64 {
+                let (rss1, n_eff) = rss_and_neff(p, f, &rows.held);
+                n_eff * (rss0 / rss1).ln()
             };
+            let passes = if c.is_jump() && p.fit_runs < p.runs.len() {
+                let read = read.as_ref().unwrap_or(&fixed);
+                ratio(read) > HELDOUT_LR_SEARCHED || ratio(&fixed) > HELDOUT_LR
+            } else {
+                ratio(read.as_ref().unwrap_or(&fixed)) > HELDOUT_LR
+            };
+            let f = read.unwrap_or(fixed);
             if passes {
                 out.kept = trial;
                 out.gains.push(*g);

@@ -129,26 +129,30 @@ pub(crate) fn settle(
     trial: &[Shaped],
     rows: &Rows,
 ) -> Result<Fitted, IdentifyError> {
-    settle_with(p, trial, rows, true)
+    let (fixed, read) = settle_both(p, trial, rows)?;
+    Ok(read.unwrap_or(fixed))
 }
 
-/// As [`settle`]; `own_jumps` false: every jump at its fitted instant in every run.
-pub(crate) fn settle_with(
+/// As [`settle`], keeping the fit from before the held-out runs read their own jump instants
+/// (every jump at its fitted instant in every run): `(fixed, read)`, `read` `None` where no
+/// instant moved (it is `fixed`). `p` is left as for the last of them.
+pub(crate) fn settle_both(
     p: &mut Problem,
     trial: &[Shaped],
     rows: &Rows,
-    own_jumps: bool,
-) -> Result<Fitted, IdentifyError> {
+) -> Result<(Fitted, Option<Fitted>), IdentifyError> {
     p.jumps.clear();
     p.frames.clear();
     let mut f = settle_rests(p, trial, rows)?;
     if choose_frames(p, trial, rows, &f)? {
         f = settle_rests(p, trial, rows)?;
     }
-    if own_jumps && read_jumps(p, trial, rows)? {
-        f = settle_rests(p, trial, rows)?;
-    }
-    Ok(f)
+    let read = if read_jumps(p, trial, rows)? {
+        Some(settle_rests(p, trial, rows)?)
+    } else {
+        None
+    };
+    Ok((f, read))
 }
 
 /// For each held-out run whose encoder frame was carried from the fit runs (`p.other_frames`):
