@@ -86,7 +86,7 @@ impl Effect {
                 "the lever's exact torque τ(φ, d) less its linearisation G(0)²k_α·φ (the k_α·α·dG/dφ term that k_φ = G²k_α drops)"
             }
             Effect::SensorDelay => {
-                "one sensor path lags the other: the declared model is fed x(t − δ); δ > 0 the torque lags the deflection, δ < 0 the deflection lags the torque"
+                "one sensor path lags the other: the declared model is fed x(t − δ); δ > 0 the torque lags the deflection, δ < 0 the deflection lags the torque; on the link equation the lag may instead be a sensor's first-order low-pass of time constant |δ| (first_order_filter = 1)"
             }
             Effect::Offset => {
                 "a sensor zero: on the torque sensor (+ c, and + c₂ after t_j when a mount slips) or on the deflection encoder (a zero slip: τ̂(x − s) after t_j)"
@@ -162,6 +162,12 @@ pub struct Shaped {
     /// MODEL.md §6.1's k_s·max(|x| − x_s, 0)·sgn x. Where the data barely passes one side's
     /// onset, that side's own onset and rate trade off and extrapolate badly.
     pub symmetric: bool,
+    /// For a sensor delay: the lagging path is a first-order low-pass of time constant
+    /// |`shape`| (a sensor's filter) rather than a pure delay (a transport or sampling
+    /// latency). The two agree to first order and part at the second: a delay δ is
+    /// 1 − δ·s + δ²·s²/2, a filter T is 1 − T·s + T²·s², and through the link equation's
+    /// inertia the difference is I·T²·q⁗/2, which a pure delay leaves for a companion.
+    pub filter: bool,
 }
 
 impl Shaped {
@@ -179,6 +185,7 @@ impl Shaped {
             size: f64::NAN,
             lower: f64::NAN,
             symmetric: false,
+            filter: false,
         }
     }
 
@@ -204,6 +211,7 @@ impl Shaped {
         eq(self.shape, other.shape)
             && eq(self.lower, other.lower)
             && self.symmetric == other.symmetric
+            && self.filter == other.filter
     }
 
     /// Whether it acts by changing the inputs the declared model sees (a lag, a gap, an
@@ -449,7 +457,11 @@ impl Shaped {
                 p
             }
             Effect::GeometricStiffness => vec![("scale", c(0))],
-            Effect::SensorDelay => vec![("delay_s", self.shape)],
+            // A filter's time constant is its delay at low frequencies.
+            Effect::SensorDelay => vec![
+                ("delay_s", self.shape),
+                ("first_order_filter", f64::from(self.filter)),
+            ],
             Effect::Offset => match self.on {
                 Place::Deflection => {
                     // The model is fed x + δ after t_j (or, while searched, the column

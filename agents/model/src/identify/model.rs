@@ -17,6 +17,10 @@ use crate::lever::LeverVsa;
 pub(crate) struct Transform {
     /// The model is fed x(t − delay) [s].
     pub delay: f64,
+    /// The lag is a sensor's first-order low-pass of time constant |delay|, not a pure delay:
+    /// delay > 0 the torque path's (the model is fed F·x: for a model linear in its inputs,
+    /// F·τ̂), delay < 0 the angle path's (fed F⁻¹·x = x + |delay|·ẋ).
+    pub filter: bool,
     /// Half-width of a gap in series with the spring [rad] (0: none).
     pub gap: f64,
     /// Whether the declared model's slope dτ̂/dx is wanted (by an encoder offset searched).
@@ -53,10 +57,33 @@ impl Transform {
         self
     }
 
+    /// A run's signal `x` over times `t` as the lag has it: delayed, low-passed or with a
+    /// low-pass undone (`rate`: x's own rate where known, else a centred difference).
+    pub fn lagged(&self, t: &[f64], x: &[f64], rate: Option<&[f64]>) -> Vec<f64> {
+        if !self.filter || self.delay == 0.0 {
+            return signals::shifted(t, x, self.delay);
+        }
+        if self.delay > 0.0 {
+            return signals::low_passed(t, x, self.delay);
+        }
+        let own;
+        let rate = match rate {
+            Some(v) => v,
+            None => {
+                own = signals::centred_rate(t, x);
+                &own
+            }
+        };
+        signals::low_pass_undone(x, rate, -self.delay)
+    }
+
     /// With one more (or a replaced) input effect.
     pub fn with(mut self, c: &Shaped) -> Self {
         match (c.effect, c.on) {
-            (Effect::SensorDelay, _) => self.delay = c.shape,
+            (Effect::SensorDelay, _) => {
+                self.delay = c.shape;
+                self.filter = c.filter;
+            }
             (Effect::Backlash, _) => self.gap = c.shape,
             (Effect::Offset, Place::Deflection) if c.size.is_finite() => {
                 self.slip = Some((c.shape, c.size));
@@ -192,20 +219,32 @@ impl Problem {
         for (k, r) in self.runs.iter().enumerate() {
             let n = r.t.len();
             let xs = if joint { r.phi.as_ref() } else { r.q.as_ref() };
-            let mut x = signals::shifted(&r.t, xs.map_or(&[][..], Vec::as_slice), tr.delay);
+            let (v, a) = (&self.rates[k].0, &self.rates[k].1);
+            let mut x = tr.lagged(&r.t, xs.map_or(&[][..], Vec::as_slice), Some(v));
             if joint {
                 let frame = self.frame(k);
                 x.iter_mut().for_each(|v| *v += frame);
             }
-            // The rates of x(t − δ) are the rates at t − δ: shifted, not computed again.
-            let (v, a) = (
-                signals::shifted(&r.t, &self.rates[k].0, tr.delay),
-                signals::shifted(&r.t, &self.rates[k].1, tr.delay),
-            );
+            // The rates of x(t − δ) are the rates at t − δ: shifted, not computed again (and
+            // a filter's, filtered: it commutes with the derivative). The weak form's rates
+            // are smoothed over samples, each an average about its sample's place on the
+            // run's uniform grid, not about its jittered instant: a filter differentiates
+            // them on that grid (on the instants, a jitter of a tenth of a step is a tenth of
+            // their jerk in noise).
+            let uniform: Vec<f64>;
+            let t_rates = if self.weak() {
+                uniform = (0..n).map(|j| r.t[0] + j as f64 * self.steps[k]).collect();
+                &uniform[..]
+            } else {
+                &r.t[..]
+            };
+            let (v, a) = (tr.lagged(t_rates, v, Some(a)), tr.lagged(t_rates, a, None));
             // The weak form's direction of motion is from its own rates, not the smoothed q̇.
+            // A filter moves it by its time constant, as a delay would: undone on the sign's
+            // own rate (a derivative of a rate) it would add that noise to where the turns are.
             let weak_sign = self
                 .weak_sign_rate(k)
-                .map(|v| signals::shifted(&r.t, v, tr.delay));
+                .map(|v| signals::shifted(t_rates, v, tr.delay));
             let rate = weak_sign.as_ref().unwrap_or(&v);
             let dir = signals::rate_sign(rate, self.still());
             // Turns out of a hold are placed where the fit rows' torque steps; the held-out
@@ -227,13 +266,10 @@ impl Problem {
             s.sign_rate.extend_from_slice(rate);
             let d =
                 r.d.as_ref()
-                    .map_or(vec![0.0; n], |d| signals::shifted(&r.t, d, tr.delay));
+                    .map_or(vec![0.0; n], |d| tr.lagged(&r.t, d, None));
             if has_q {
-                q_all.extend(signals::shifted(
-                    &r.t,
-                    r.q.as_ref().map_or(&[][..], Vec::as_slice),
-                    tr.delay,
-                ));
+                let q = r.q.as_ref().map_or(&[][..], Vec::as_slice);
+                q_all.extend(tr.lagged(&r.t, q, (!joint).then_some(&self.rates[k].0[..])));
             }
             let t0 = r.t[0];
             s.duration = s.duration.max(r.t[n - 1] - t0);
@@ -381,12 +417,12 @@ fn loop_samples(
         let n = r.t.len();
         let tr = tr.in_run(|tj| p.jump_instant(run, tj));
         let frame = p.frame(run);
-        let phi = signals::shifted(
+        let phi = tr.lagged(
             &r.t,
             r.phi.as_ref().map_or(&[][..], Vec::as_slice),
-            tr.delay,
+            Some(&p.rates[run].0),
         );
-        let d = r.d.as_ref().map(|d| signals::shifted(&r.t, d, tr.delay));
+        let d = r.d.as_ref().map(|d| tr.lagged(&r.t, d, None));
         for k in 0..n.min(phi.len()) {
             let i = offset + k;
             if rows.binary_search(&i).is_ok() {

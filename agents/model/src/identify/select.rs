@@ -121,12 +121,27 @@ pub(crate) fn candidates(p: &Problem, opts: &Options, dt: f64, duration: f64) ->
                 // Either path may lag: δ > 0 the torque, δ < 0 the angle.
                 let step = dt.max(opts.max_delay / 20.0);
                 let k = (opts.max_delay / step).floor() as i64;
-                Ok(each(
+                let delays = each(
                     e,
                     (1..=k)
                         .flat_map(|i| [i as f64 * step, -(i as f64) * step])
                         .collect(),
-                ))
+                );
+                // On the link equation a lag may also be a sensor's first-order filter
+                // (`Shaped::filter`): its inertia turns the two shapes' second-order
+                // difference into I·T²·q⁗/2, which a delay leaves for a companion (a filtered
+                // angle at 30 ms on a 1 kHz multi-sine: the delay 0.14 of the error before,
+                // with a "gravity" of 0.1 % of the torque beside it; the filter at its
+                // floor). On a joint model the difference is k·T²·ẍ/2, under the noise.
+                let filters: Vec<Shaped> = if opts.model == Declared::Link {
+                    delays
+                        .iter()
+                        .map(|c| Shaped { filter: true, ..*c })
+                        .collect()
+                } else {
+                    vec![]
+                };
+                Ok(delays.into_iter().chain(filters).collect())
             }
             (Effect::Offset, _) => {
                 let times = &jump_times;
@@ -1324,8 +1339,18 @@ fn search(
     // A stop the same on both sides and one of its own on each are refined each in their
     // family: the coarse grid's best is often the asymmetric pair, whose refinement then
     // never reaches the symmetric stop that validates better (a side the data barely passes).
-    if grid.iter().any(|c| c.symmetric) && grid.iter().any(|c| !c.symmetric) {
-        let (both, each): (Vec<Shaped>, Vec<Shaped>) = grid.iter().partition(|c| c.symmetric);
+    // Likewise a lag as a pure delay and as a sensor's filter: the same number, two shapes.
+    let family: Option<fn(&Shaped) -> bool> = if grid.iter().any(|c| c.symmetric) {
+        Some(|c| c.symmetric)
+    } else if grid.iter().any(|c| c.filter) {
+        Some(|c| c.filter)
+    } else {
+        None
+    };
+    if let Some(family) = family
+        && grid.iter().any(|c| !family(c))
+    {
+        let (both, each): (Vec<Shaped>, Vec<Shaped>) = grid.iter().partition(|c| family(c));
         let a = search(p, sig, chosen, &both, train, validate, progress);
         let b = search(p, sig, chosen, &each, train, validate, progress);
         let tried = a.map_or(0, |r| r.2) + b.map_or(0, |r| r.2);

@@ -285,6 +285,50 @@ pub fn stop_operator_from(x: &[f64], r: f64, s0: f64) -> Vec<f64> {
 
 pub use crate::live::dead_zone;
 
+/// `x` through a sensor's first-order low-pass of time constant `tc` [s] (T·ẏ = x − y),
+/// discretised exactly for an `x` linear between samples (the ramp-invariant form, right at
+/// any sampling step), from rest at the first sample.
+pub fn low_passed(t: &[f64], x: &[f64], tc: f64) -> Vec<f64> {
+    let n = t.len().min(x.len());
+    let mut out = Vec::with_capacity(n);
+    let Some(&x0) = x.first() else {
+        return out;
+    };
+    out.push(x0);
+    for k in 1..n {
+        let h = t[k] - t[k - 1];
+        let y0 = out[k - 1];
+        if !(h > 0.0 && tc > 0.0) {
+            out.push(x[k]);
+            continue;
+        }
+        let a = (-h / tc).exp();
+        out.push(a * y0 + x[k] - a * x[k - 1] - tc / h * (1.0 - a) * (x[k] - x[k - 1]));
+    }
+    out
+}
+
+/// The reading of a first-order low-pass of time constant `tc` undone: x + tc·ẋ, with `rate`
+/// the reading's rate (the true signal of a sensor that filtered it, F⁻¹·x).
+pub fn low_pass_undone(x: &[f64], rate: &[f64], tc: f64) -> Vec<f64> {
+    x.iter().zip(rate).map(|(x, v)| x + tc * v).collect()
+}
+
+/// The centred difference of `x` over `t` (one-sided at the ends).
+pub fn centred_rate(t: &[f64], x: &[f64]) -> Vec<f64> {
+    let n = t.len().min(x.len());
+    (0..n)
+        .map(|k| {
+            let (a, b) = (k.saturating_sub(1), (k + 1).min(n - 1));
+            if b > a && t[b] > t[a] {
+                (x[b] - x[a]) / (t[b] - t[a])
+            } else {
+                0.0
+            }
+        })
+        .collect()
+}
+
 /// `x` at times `t − delay` by linear interpolation (held at the ends).
 pub fn shifted(t: &[f64], x: &[f64], delay: f64) -> Vec<f64> {
     if delay == 0.0 {
