@@ -10,16 +10,11 @@ Usage: third-generator.py OUTDIR EFFECT SEED  -> OUTDIR/fit.csv, OUTDIR/ho.csv, 
        third-generator.py --effects              -> the EFFECT names
 """
 import math, random, sys, os
+from generator_io import case_args, write_case, write_run
 
 EFFECTS = "none backlash hysteresis lag slip tstep drift kstep stop coulomb viscous ripple".split()
-if sys.argv[1:] == ["--effects"]:
-    sys.exit(print(" ".join(EFFECTS)))
-if len(sys.argv) != 4 or sys.argv[2] not in EFFECTS or not sys.argv[3].isdigit():
-    sys.exit(f"usage: third-generator.py OUTDIR EFFECT SEED (EFFECT one of {', '.join(EFFECTS)}; "
-             f"SEED a whole number), not {' '.join(sys.argv[1:])!r}")
-out, effect, seed = sys.argv[1], sys.argv[2], int(sys.argv[3])
+out, effect, seed = case_args("third-generator.py", EFFECTS)
 rng = random.Random(1000 * seed + sum(map(ord, effect)))
-os.makedirs(out, exist_ok=True)
 
 k = math.exp(rng.uniform(math.log(30), math.log(2500)))  # N·m/rad
 tau_pk = rng.uniform(1.5, 12.0)
@@ -154,16 +149,8 @@ def run(path, r, jump_frac):
             phim = round(phim / q) * q
         taum = tau + r.uniform(-1, 1) * noise * math.sqrt(3)
         rows.append((t, phim, taum))
-    with open(path, "w") as f:
-        f.write("t,phi,tau\n")
-        for t, a, b in rows:
-            f.write(f"{t:.6f},{a:.9e},{b:.9e}\n")
+    write_run(path, "t,phi,tau", rows)
     return kind
 
 
-jf = rng.uniform(0.3, 0.7)
-jh = jf if os.environ.get("SAMEJUMP") else rng.uniform(0.3, 0.7)
-truth["fit_motion"] = run(os.path.join(out, "fit.csv"), random.Random(rng.random()), jf)
-truth["ho_motion"] = run(os.path.join(out, "ho.csv"), random.Random(rng.random()), jh)
-with open(os.path.join(out, "truth.txt"), "w") as f:
-    f.write(repr(truth) + "\n")
+write_case(out, rng, truth, run)

@@ -1,16 +1,19 @@
 #!/bin/bash
-# third-generator.sh OUT SEEDS [EFFECT...]: `rig identify --model linear` on the third generator's
+# third-generator.sh OUT SEEDS [EFFECT...]: `rig identify --model $model` on the third generator's
 # cases (scripts/third-generator.py), fitted on one run and scored on the other: one line per
 # case with the held-out RMSE after/before and the effects named (a case `rig identify` fails
 # on is said, its log kept). The rig binary: scripts/rig-binary.sh. SAMEJUMP=1: a jump at the
-# same instant in both runs.
+# same instant in both runs. PLANT=link: paper A's link equation (scripts/link-generator.py,
+# `rig identify --model link`).
 set -euo pipefail
 source "$(dirname "$0")/rig-binary.sh"
 OUT=$1; S=$2; shift 2
-EFF=${*:-$(python3 "$here/scripts/third-generator.py" --effects)}
+gen=$here/scripts/third-generator.py; model=linear
+[ "${PLANT:-linear}" = link ] && { gen=$here/scripts/link-generator.py; model=link; }
+EFF=${*:-$(python3 "$gen" --effects)}
 for e in $EFF; do for s in $(seq 0 $((S-1))); do
-  d=$OUT/$e-$s; python3 "$here/scripts/third-generator.py" "$d" "$e" "$s"
-  "$rig" identify --model linear --data "$d/fit.csv" --holdout "$d/ho.csv" --report "$d/r.json" \
+  d=$OUT/$e-$s; python3 "$gen" "$d" "$e" "$s"
+  "$rig" identify --model $model --data "$d/fit.csv" --holdout "$d/ho.csv" --report "$d/r.json" \
     > "$d/log" 2>&1 || { echo "$e-$s: rig identify failed, see $d/log" >&2; continue; }
   python3 - "$d" <<'PY'
 import json,sys,ast
