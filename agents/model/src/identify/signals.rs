@@ -302,8 +302,9 @@ pub fn low_passed(t: &[f64], x: &[f64], tc: f64) -> Vec<f64> {
             out.push(x[k]);
             continue;
         }
-        let a = (-h / tc).exp();
-        out.push(a * y0 + x[k] - a * x[k - 1] - tc / h * (1.0 - a) * (x[k] - x[k - 1]));
+        // 1 − a by exp_m1: exact to the last digit at steps much shorter than tc.
+        let (a, one_less) = ((-h / tc).exp(), -(-h / tc).exp_m1());
+        out.push(a * y0 + x[k] - a * x[k - 1] - tc / h * one_less * (x[k] - x[k - 1]));
     }
     out
 }
@@ -988,5 +989,42 @@ mod tests {
                 );
             }
         }
+    }
+
+    #[test]
+    fn a_first_order_low_pass_follows_a_ramp_exactly_at_any_steps_and_undoing_it_gives_the_ramp_back()
+     {
+        // x = 0 until t = 0.1 s, then 2·(t − 0.1): from rest, T·ẏ = x − y gives
+        // y = 2·(u − T·(1 − e^(−u/T))), u = t − 0.1, and ẏ = 2·(1 − e^(−u/T)); irregular
+        // steps of 1–9 ms, one corner at a sample.
+        let tc = 0.03;
+        let mut t = vec![0.0];
+        let mut uniform = uniforms(5);
+        while *t.last().unwrap() < 0.6 {
+            t.push(t.last().unwrap() + 0.001 + 0.008 * uniform());
+        }
+        t.push(0.1);
+        t.sort_by(f64::total_cmp);
+        let x: Vec<f64> = t.iter().map(|t| 2.0 * (t - 0.1).max(0.0)).collect();
+        let y = low_passed(&t, &x, tc);
+        let (mut rates, mut worst) = (vec![], 0.0f64);
+        for (t, y) in t.iter().zip(&y) {
+            let u = (t - 0.1).max(0.0);
+            let want = 2.0 * (u - tc * (1.0 - (-u / tc).exp()));
+            worst = worst.max((y - want).abs());
+            rates.push(2.0 * (1.0 - (-u / tc).exp()));
+        }
+        assert!(worst < 1e-12, "off the closed form by {worst}");
+        let back = low_pass_undone(&y, &rates, tc);
+        for (b, x) in back.iter().zip(&x) {
+            assert!((b - x).abs() < 1e-12, "{b} against {x}");
+        }
+        // The centred difference of a straight line is its slope, at the ends too.
+        let line: Vec<f64> = t.iter().map(|t| 4.0 - 3.0 * t).collect();
+        assert!(
+            centred_rate(&t, &line)
+                .iter()
+                .all(|v| (v + 3.0).abs() < 1e-9)
+        );
     }
 }
