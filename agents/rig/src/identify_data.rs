@@ -5,7 +5,7 @@ use std::collections::{BTreeMap, BTreeSet};
 use std::path::Path;
 
 use rig_model::identify::Run;
-use rig_model::identify::signals::median_step;
+use rig_model::identify::signals::{GAP_STEPS, median_step};
 use rig_protocol::{JointEstimate, JointSample, JointStatus, Topic, decode, decode_samples};
 use serde::Serialize;
 
@@ -122,7 +122,7 @@ pub struct Sampling {
     pub dt_median_s: f64,
     pub dt_p99_s: f64,
     pub dt_max_s: f64,
-    /// Steps longer than 5 median steps.
+    /// Steps longer than [`GAP_STEPS`] median steps: gaps in the recording.
     pub gaps: usize,
     /// Sampling rate varies: p99 step over 1.5 median steps.
     pub irregular: bool,
@@ -144,7 +144,7 @@ fn sampling(file: &str, rows: usize, t: &[f64]) -> Sampling {
         dt_median_s: med,
         dt_p99_s: p99,
         dt_max_s: steps.last().copied().unwrap_or(0.0),
-        gaps: steps.iter().filter(|s| **s > 5.0 * med).count(),
+        gaps: steps.iter().filter(|s| **s > GAP_STEPS * med).count(),
         irregular: p99 > 1.5 * med,
         columns: BTreeMap::new(),
     }

@@ -427,7 +427,7 @@ pub fn identify(
     let torque_noise = raw
         .runs
         .iter()
-        .map(|r| signals::white_noise_rms(&r.tau))
+        .map(|r| signals::white_noise_rms_at(&r.t, &r.tau))
         .fold(0.0, f64::max);
 
     // Tare: each run's zeros from the rest it starts with.

@@ -152,9 +152,9 @@ impl Signals {
     pub(crate) fn smoothed(&self, col: Vec<f64>) -> Vec<f64> {
         match &self.weak {
             None => col,
-            Some((h, dts)) => {
-                self.per_run_k(|k, a, b| signals::weak_smooth(&col[a..b], *h, dts[k]))
-            }
+            Some((h, dts)) => self.per_run_k(|k, a, b| {
+                signals::weak_smooth_at(&self.t_rel[a..b], &col[a..b], *h, dts[k])
+            }),
         }
     }
 
@@ -230,10 +230,12 @@ impl Problem {
             // are smoothed over samples, each an average about its sample's place on the
             // run's uniform grid, not about its jittered instant: a filter differentiates
             // them on that grid (on the instants, a jitter of a tenth of a step is a tenth of
-            // their jerk in noise).
+            // their jerk in noise). Each step is a whole number of grid steps, at least one,
+            // so a dropped sample or a gap in the recording leaves the places after it where
+            // they are.
             let uniform: Vec<f64>;
             let t_rates = if self.weak() {
-                uniform = (0..n).map(|j| r.t[0] + j as f64 * self.steps[k]).collect();
+                uniform = signals::grid_places(&r.t, self.steps[k]);
                 &uniform[..]
             } else {
                 &r.t[..]

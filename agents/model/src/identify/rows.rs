@@ -305,15 +305,19 @@ impl Problem {
             bounds.push((start, tau.len()));
             runs.push(r.clone());
         }
-        // The link equation in weak form: each run's ends take no part.
+        // The link equation in weak form: each run's ends take no part, nor the ends of the
+        // stretches between gaps in its recording (the smoother stops at a gap as at an end).
         if opts.model == Declared::Link {
             let edge = weak_edge(&runs);
             for (k, &(a, _)) in bounds.iter().enumerate() {
                 let t = &runs[k].t;
-                let (t0, t1) = (t[0], t[t.len() - 1]);
-                for (j, &tj) in t.iter().enumerate() {
-                    if tj - t0 < edge || t1 - tj < edge {
-                        role[a + j] = Role::Edge;
+                let gap = signals::GAP_STEPS * signals::median_step(t);
+                for piece in signals::unbroken(t, gap) {
+                    let (t0, t1) = (t[piece.start], t[piece.end - 1]);
+                    for j in piece {
+                        if t[j] - t0 < edge || t1 - t[j] < edge {
+                            role[a + j] = Role::Edge;
+                        }
                     }
                 }
             }
@@ -334,7 +338,7 @@ impl Problem {
         // The encoder's own noise, measured before it is averaged away below.
         let noise: Vec<f64> = runs
             .iter()
-            .map(|r| signals::white_noise_rms(&angle_of(r)))
+            .map(|r| signals::white_noise_rms_at(&r.t, &angle_of(r)))
             .collect();
         // The link angle's q̈ in the weak form: a quantised angle read as the taut string
         // through its counts, not as a staircase (see [`signals::taut_string`]) — where the
@@ -407,17 +411,19 @@ impl Problem {
             fn q(r: &Run) -> &[f64] {
                 r.q.as_deref().unwrap_or(&[])
             }
+            // Stretch by stretch between gaps in the recording, each on its whole uniform
+            // grid ([`signals::weak_smooth_at`]).
             self.rates = self
                 .runs
                 .iter()
                 .zip(&self.steps)
-                .map(|(r, &dt)| signals::weak_rates(&r.t, q(r), w, dt))
+                .map(|(r, &dt)| signals::weak_rates_at(&r.t, q(r), w, dt))
                 .collect();
             self.tau = self
                 .runs
                 .iter()
                 .zip(&self.steps)
-                .flat_map(|(r, &dt)| signals::weak_smooth(&r.tau, w, dt))
+                .flat_map(|(r, &dt)| signals::weak_smooth_at(&r.t, &r.tau, w, dt))
                 .collect();
             self.sign_rates = self
                 .runs

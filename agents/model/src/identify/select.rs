@@ -1841,7 +1841,7 @@ fn weak_window(raw: &mut Problem, rows: &Rows, opts: &Options) -> Result<f64, Id
     let torque_noise = raw
         .runs
         .iter()
-        .map(|r| signals::white_noise_rms(&r.tau))
+        .map(|r| signals::white_noise_rms_at(&r.t, &r.tau))
         .fold(0.0, f64::max);
     Ok(tried
         .iter()
