@@ -4,7 +4,8 @@
 # case with the held-out RMSE after/before and the effects named (a case `rig identify` fails
 # on is said, its log kept). The rig binary: scripts/rig-binary.sh. SAMEJUMP=1: a jump at the
 # same instant in both runs. PLANT=link: paper A's link equation (scripts/link-generator.py,
-# `rig identify --model link`).
+# `rig identify --model link`). DROP=tenth|pause: each case's files as a logger that drops
+# samples or stalls would have written them (scripts/drop-rows.py).
 set -euo pipefail
 source "$(dirname "$0")/rig-binary.sh"
 OUT=$1; S=$2; shift 2
@@ -13,6 +14,7 @@ gen=$here/scripts/third-generator.py; model=linear
 EFF=${*:-$(python3 "$gen" --effects)}
 for e in $EFF; do for s in $(seq 0 $((S-1))); do
   d=$OUT/$e-$s; python3 "$gen" "$d" "$e" "$s"
+  [ -n "${DROP:-}" ] && python3 "$here/scripts/drop-rows.py" "$d" "$d" "$DROP"
   "$rig" identify --model $model --data "$d/fit.csv" --holdout "$d/ho.csv" --report "$d/r.json" \
     > "$d/log" 2>&1 || { echo "$e-$s: rig identify failed, see $d/log" >&2; continue; }
   python3 - "$d" <<'PY'
