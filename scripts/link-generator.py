@@ -29,6 +29,8 @@ counts = int(os.environ.get("COUNTS", counts))  # 0: not quantised
 T = rng.uniform(20, 40)
 rest = rng.uniform(0.5, 2.0)
 FINE = 20000.0
+# each sample taken up to this fraction of a step off its slot (under 0.5 keeps the order)
+JITTER = float(os.environ.get("JITTER", 0.1))
 # the torque a swing of the amplitude at the motion's top frequency takes: effects and noise
 # are sized from it
 w = 2 * math.pi * f_hi
@@ -155,7 +157,7 @@ def run(path, r, jump_frac):
     res = 2 * math.pi / max(counts, 1)
     rows = []
     for i in range(int((T + rest) * rate)):
-        t = i / rate + r.uniform(-0.1, 0.1) / rate if i else 0.0
+        t = i / rate + r.uniform(-JITTER, JITTER) / rate if i else 0.0
         qq = round(at(qm, t) / res) * res if counts else at(qm, t)
         tm = at(tau, t) + r.uniform(-1, 1) * noise * math.sqrt(3)
         rows.append((t, qq, tm))

@@ -20,6 +20,8 @@ k = math.exp(rng.uniform(math.log(30), math.log(2500)))  # N·m/rad
 tau_pk = rng.uniform(1.5, 12.0)
 phi_pk = tau_pk / k
 rate = rng.choice([100, 250, 333, 500, 1000])
+# each sample taken up to this fraction of a step off its slot (under 0.5 keeps the order)
+JITTER = float(os.environ.get("JITTER", 0.1))
 noise = rng.choice([0.003, 0.01, 0.02]) * tau_pk
 counts = rng.choice([4096, 16384, 65536, 0])  # 0: not quantised
 # a lab picks an encoder that resolves the deflection: at least 200 counts over the peak
@@ -105,7 +107,7 @@ def run(path, r, jump_frac):
     rows = []
     prev_phi = 0.0
     for i in range(n):
-        t = i / rate + r.uniform(-0.1, 0.1) / rate
+        t = i / rate + r.uniform(-JITTER, JITTER) / rate
         tm = t - rest
         x = 0.0 if tm < 0 else m(tm)
         # ease in from rest

@@ -796,41 +796,51 @@ fn dry_friction_built_up_over_a_small_speed_is_named_alone_with_that_speed() {
 
 #[test]
 fn a_lag_found_at_the_bound_of_the_lags_searched_is_named_but_said_not_to_be_located() {
-    // The link's angle lags by 10–30 ms under two counts of encoder noise. On this seed the
-    // validation error falls all the way to the bound of the ±100 ms searched (the shifted q̇
-    // also stands in for the noisy q̈): the lag is named, it pays off held out, and the report
-    // flags its δ as the bound, not a located lag, so `--apply` leaves the rig's timing alone.
-    // (Refusing such lags named nothing on 3 of this row's 10 seeds.)
+    // A linear spring with a Stribeck peak (1 kHz ramp-and-hold, 2 % noise; docs/IDENTIFY.md,
+    // Left): the validation error of a lag of the deflection falls all the way to the bound of
+    // the ±100 ms searched. The lag is named, it lowers the held-out error, and the report flags
+    // its δ as the bound, not a located lag, so `--apply` leaves the rig's timing alone.
+    // (Refusing such lags named nothing on 3 of 10 link seeds under encoder noise.)
     let c = Case {
-        encoder_noise: 2.0,
-        ..cases(Plant::Link, Some(Inject::AngleLag), 1..2)[0]
+        friction: DryFriction::Stribeck(0.05),
+        ..case(Plant::Linear, Some(Inject::Coulomb), 9, 1000.0, 0.02)
     };
-    let truth = generate(&c, 0).size;
     let id = identify_case(&c);
     let names: Vec<&str> = id.effects.iter().map(|e| e.effect.name()).collect();
     assert_eq!(names, ["sensor_delay"], "{c:?}");
     let delay = param_of(&id, "delay_s");
-    assert!(
-        (delay + 0.1).abs() < 1e-9 && truth < 0.05,
-        "{c:?}: δ {delay} s, the generator's lag {truth} s"
-    );
+    assert!((delay + 0.1).abs() < 1e-9, "{c:?}: δ {delay} s");
     assert_eq!(param_of(&id, AT_SEARCH_BOUND), 1.0, "{c:?}");
-    let o = outcome_of(&c, &id);
-    assert!(o.paid_off(), "{c:?}: {o:?}");
-    // A lag inside the range carries no flag (the row's seed 2: −18.5 ms).
+    assert!(id.after.rmse < id.before.rmse, "{c:?}: {id:?}");
+    // Lags inside the range carry no flag: the link's angle lagging under two counts of encoder
+    // noise, seed 1 (28.6 ms; at the bound until jittered samples were read onto a uniform
+    // grid) and seed 2 (−18.5 ms).
+    for seed in 1..3 {
+        let c = Case {
+            encoder_noise: 2.0,
+            ..cases(Plant::Link, Some(Inject::AngleLag), seed..seed + 1)[0]
+        };
+        let id = identify_case(&c);
+        let lag = id
+            .effects
+            .iter()
+            .find(|e| e.effect.name() == "sensor_delay");
+        assert!(
+            lag.is_some_and(|e| e.params.iter().all(|p| p.0 != AT_SEARCH_BOUND)),
+            "{c:?}: {:?}",
+            id.effects
+        );
+    }
+    // Seed 1's is located: within 5 % of the generator's.
     let c = Case {
         encoder_noise: 2.0,
-        ..cases(Plant::Link, Some(Inject::AngleLag), 2..3)[0]
+        ..cases(Plant::Link, Some(Inject::AngleLag), 1..2)[0]
     };
-    let id = identify_case(&c);
-    let lag = id
-        .effects
-        .iter()
-        .find(|e| e.effect.name() == "sensor_delay");
+    let (truth, id) = (generate(&c, 0).size, identify_case(&c));
+    let delay = param_of(&id, "delay_s");
     assert!(
-        lag.is_some_and(|e| e.params.iter().all(|p| p.0 != AT_SEARCH_BOUND)),
-        "{c:?}: {:?}",
-        id.effects
+        (-delay / truth - 1.0).abs() < 0.05,
+        "{c:?}: δ {delay} s, the generator's lag {truth} s"
     );
 }
 
@@ -890,12 +900,13 @@ fn on_a_link_turning_where_gravitys_sine_is_flat_an_offset_is_named_an_offset_an
         (mgl / truth - 1.0).abs() < 0.02,
         "m·g·l {mgl} against {truth}"
     );
-    // Within a quarter of the clean twin's error: its floor is 0.28 mN·m since the 14-bit
-    // angle is read as the taut string through its counts (1.2 mN·m as a staircase), and
-    // what gravity leaves over it, 0.2 mN·m, is a tenth of a per cent of gravity's torque:
-    // m·g·l 1 % over, where an 18-bit encoder fits it 0.4 % over (the string cuts inside the
-    // swing's turns by up to half a count).
-    within_the_clean_twin(&gravity, &id, 1.25);
+    // Within 30 % of the clean twin's error: its floor is 0.24 mN·m since the 14-bit angle is
+    // read as the taut string through its counts (1.2 mN·m as a staircase; 0.28 until the
+    // jittered samples were read onto a uniform grid), and what gravity leaves over it,
+    // 0.2 mN·m, is a tenth of a per cent of gravity's torque (the string cuts inside the
+    // swing's turns by up to half a count; an 18-bit encoder fitted m·g·l 0.4 % over where
+    // this one fitted it 1 % over).
+    within_the_clean_twin(&gravity, &id, 1.3);
 }
 
 /// One case: even seeds a multi-sine, odd ones ramp-and-hold.

@@ -227,26 +227,15 @@ impl Problem {
             }
             // The rates of x(t − δ) are the rates at t − δ: shifted, not computed again (and
             // a filter's, filtered: it commutes with the derivative). The weak form's rates
-            // are smoothed over samples, each an average about its sample's place on the
-            // run's uniform grid, not about its jittered instant: a filter differentiates
-            // them on that grid (on the instants, a jitter of a tenth of a step is a tenth of
-            // their jerk in noise). Each step is a whole number of grid steps, at least one,
-            // so a dropped sample or a gap in the recording leaves the places after it where
-            // they are.
-            let uniform: Vec<f64>;
-            let t_rates = if self.weak() {
-                uniform = signals::grid_places(&r.t, self.steps[k]);
-                &uniform[..]
-            } else {
-                &r.t[..]
-            };
-            let (v, a) = (tr.lagged(t_rates, v, Some(a)), tr.lagged(t_rates, a, None));
+            // are read back from its uniform grid at the samples' own instants
+            // ([`signals::weak_smooth_at`]), so they are shifted and differentiated there.
+            let (v, a) = (tr.lagged(&r.t, v, Some(a)), tr.lagged(&r.t, a, None));
             // The weak form's direction of motion is from its own rates, not the smoothed q̇.
             // A filter moves it by its time constant, as a delay would: undone on the sign's
             // own rate (a derivative of a rate) it would add that noise to where the turns are.
             let weak_sign = self
                 .weak_sign_rate(k)
-                .map(|v| signals::shifted(t_rates, v, tr.delay));
+                .map(|v| signals::shifted(&r.t, v, tr.delay));
             let rate = weak_sign.as_ref().unwrap_or(&v);
             let dir = signals::rate_sign(rate, self.still());
             // Turns out of a hold are placed where the fit rows' torque steps; the held-out

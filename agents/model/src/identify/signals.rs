@@ -401,80 +401,64 @@ pub fn by_stretch(
         .collect()
 }
 
-/// Each instant's place on a uniform grid of step `h` [s] from `t[0]`: every step between
-/// instants taken as the whole number of grid steps nearest it, at least one. Where each
-/// instant jitters by under a quarter of a step either way, each place is its sample's slot: a
-/// dropped sample or a gap moves the places after it by the steps missed. (Step by step, not
-/// (t − t₀)/h rounded: a median step off by 10⁻⁴ of itself drifts a step in 10⁴ samples.)
-/// `t` increasing, `h` > 0.
-pub fn grid_places(t: &[f64], h: f64) -> Vec<f64> {
-    let mut out = Vec::with_capacity(t.len());
-    let mut steps = 0.0;
-    for (j, &tj) in t.iter().enumerate() {
-        if j > 0 {
-            steps += ((tj - t[j - 1]) / h).round().max(1.0);
-        }
-        out.push(t.first().map_or(0.0, |t0| t0 + steps * h));
-    }
-    out
-}
-
-/// One unbroken stretch's samples on its uniform grid of step `h`: each sample's slot (its
-/// place, [`grid_places`], counted in steps), and the grid's instants — each sample's own where
-/// one was taken (jitter and all), between its neighbours' where none was.
-struct Grid {
+/// One unbroken stretch of samples and the uniform grid of step `dt` over it, from its first
+/// instant to its last (within a step before it, never past it: a value there would be held,
+/// not read between samples): the weak form's smoother is a sum over evenly
+/// spaced values, so a stretch sampled unevenly — jittered instants, dropped samples — is read
+/// onto the grid, smoothed there, and read back at its own instants.
+struct Grid<'a> {
+    at: &'a [f64],
     t: Vec<f64>,
-    slots: Vec<usize>,
 }
 
-impl Grid {
-    fn of(t: &[f64], h: f64) -> Self {
-        let places = grid_places(t, h);
-        let slots = (places.iter())
-            .map(|p| ((p - places[0]) / h).round() as usize)
-            .collect();
-        let mut g = Grid { t: vec![], slots };
-        g.t = g.fill(t);
-        g
-    }
-
-    /// `x` (one value a sample) on every slot: linear between the samples either side of a
-    /// slot none was taken at.
-    fn fill(&self, x: &[f64]) -> Vec<f64> {
-        let mut out = Vec::with_capacity(self.slots.last().map_or(0, |s| s + 1));
-        for (j, w) in self.slots.windows(2).enumerate() {
-            for k in w[0]..w[1] {
-                let f = (k - w[0]) as f64 / (w[1] - w[0]) as f64;
-                out.push(x[j] + f * (x[j + 1] - x[j]));
-            }
+impl<'a> Grid<'a> {
+    fn of(at: &'a [f64], dt: f64) -> Self {
+        let span = at.last().zip(at.first()).map_or(0.0, |(b, a)| b - a);
+        let n = (span / dt + 1e-9).floor() as usize + 1;
+        let t0 = at.first().copied().unwrap_or(0.0);
+        Grid {
+            at,
+            t: (0..n).map(|k| t0 + k as f64 * dt).collect(),
         }
-        out.extend(x.last().filter(|_| !self.slots.is_empty()));
-        out
     }
 
-    /// The values at the samples' slots.
+    /// `x` (one value a sample) on the grid, linear between the samples either side.
+    fn fill(&self, x: &[f64]) -> Vec<f64> {
+        resampled(self.at, x, &self.t)
+    }
+
+    /// `y` (one value a grid instant) at the samples' instants, linear between grid instants.
     fn pick(&self, y: &[f64]) -> Vec<f64> {
-        self.slots.iter().map(|&s| y[s]).collect()
+        resampled(&self.t, y, self.at)
     }
 }
 
-/// Whether every step of `t` is one grid step of `h` (none dropped, no gap): then the grid is
-/// the samples themselves.
-fn every_slot_taken(t: &[f64], h: f64) -> bool {
-    t.windows(2).all(|w| (w[1] - w[0]) / h < 1.5)
+/// (t, x) read at the increasing instants `at` by linear interpolation, held at the ends.
+fn resampled(t: &[f64], x: &[f64], at: &[f64]) -> Vec<f64> {
+    let mut k = 0;
+    at.iter().map(|&a| interp_walk(t, x, a, &mut k)).collect()
+}
+
+/// Whether `t` is its own uniform grid of step `dt` (every step `dt` to rounding): then the
+/// smoother runs on the samples as they are.
+fn on_its_grid(t: &[f64], dt: f64) -> bool {
+    t.windows(2).all(|w| (w[1] - w[0] - dt).abs() <= 1e-6 * dt)
 }
 
 /// [`weak_smooth`] of `x` sampled at the instants `t` with the step `dt`: stretch by stretch
-/// between gaps ([`by_stretch`]), each on its whole uniform grid, a slot where a sample was
-/// dropped filled in between its neighbours. The smoother is a sum over evenly spaced slots;
-/// the weak form needs that, not only the same operator on both sides: the angle's q̈ (a
-/// counted angle read as the taut string, whose q̈ is its bends) is a derivative, and its
-/// weighted sum over slots sums by parts into the angle only where the slots are even (a
-/// tenth of a 14-bit link's samples dropped left 4 times its held-out error). A filled slot
-/// errs by h²·ẍ/8 in x, which a second difference's weights (summing to 0) cancel once
-/// smoothed.
+/// between gaps ([`by_stretch`]), each read onto its uniform grid ([`Grid`]: linear between
+/// samples, over a dropped one too), smoothed there and read back at the samples' instants. The
+/// smoother is a sum over evenly spaced values; the weak form needs that, not only the same
+/// operator on both sides: the angle's q̈ (a counted angle read as the taut string, whose q̈ is
+/// its bends) is a derivative, and its weighted sum sums by parts into the angle only where the
+/// values are evenly spaced. Summed over jittered samples it does not: a jitter of ±0.45 of a
+/// step at 1 kHz left a clean link 46 times its floor on even samples, ±0.24 nine times (and a
+/// tenth of a 14-bit link's samples dropped, 4 times its held-out error). Reading back is the
+/// same linear operator for the torque and every column, so the weak form still holds term by
+/// term; a value read onto the grid errs by at most h²·ẍ/8, which a second difference's
+/// weights (summing to 0) cancel once smoothed.
 pub fn weak_smooth_at(t: &[f64], x: &[f64], half_support: f64, dt: f64) -> Vec<f64> {
-    if every_slot_taken(t, dt) {
+    if on_its_grid(t, dt) {
         return weak_smooth(x, half_support, dt);
     }
     by_stretch(t, dt, |s| {
@@ -484,9 +468,9 @@ pub fn weak_smooth_at(t: &[f64], x: &[f64], half_support: f64, dt: f64) -> Vec<f
 }
 
 /// [`weak_rates`] of `x` sampled at the instants `t`, as [`weak_smooth_at`] smooths: stretch by
-/// stretch, each on its whole uniform grid.
+/// stretch, each read onto its uniform grid, its rates taken and smoothed there, and read back.
 pub fn weak_rates_at(t: &[f64], x: &[f64], half_support: f64, dt: f64) -> (Vec<f64>, Vec<f64>) {
-    if every_slot_taken(t, dt) {
+    if on_its_grid(t, dt) {
         return weak_rates(t, x, half_support, dt);
     }
     let mut a = Vec::with_capacity(t.len());
@@ -529,25 +513,38 @@ pub fn white_noise_rms(x: &[f64]) -> f64 {
     fourth_difference_rms(x.windows(5))
 }
 
-/// [`white_noise_rms`] of `x` sampled at the instants `t`, from the five-sample windows whose
-/// steps are each within half a median step of it: across a dropped sample or a gap in the
-/// recording the motion's cubic does not cancel (a 250 Hz multi-sine with a tenth of its
-/// samples dropped read 1.5 times its noise, and its counted angle was no longer read as the
-/// taut string through them). All the windows where none is uniform.
+/// [`white_noise_rms`] of `x` sampled at the instants `t`: on each five samples the fourth
+/// divided difference on their own instants, which cancels a cubic at any spacing, over its
+/// gain for white noise (on even steps exactly the fourth difference over √70). By index a
+/// jittered sampling reads the motion's ẋ·(jitter) as noise, and across a dropped sample the
+/// motion's cubic does not cancel (a 250 Hz multi-sine with a tenth of its samples dropped read
+/// 1.5 times its noise, and its counted angle was no longer read as the taut string through its
+/// counts). Five samples that span a gap in the recording ([`GAP_STEPS`]) are left out.
 pub fn white_noise_rms_at(t: &[f64], x: &[f64]) -> f64 {
-    let h = median_step(t);
-    let even = |k: usize| (k..k + 4).all(|i| (t[i + 1] - t[i] - h).abs() <= 0.5 * h);
+    let gap = GAP_STEPS * median_step(t);
     let n = x.len().min(t.len());
-    if !(0..n.saturating_sub(4)).any(even) {
+    let d: Vec<f64> = (0..n.saturating_sub(4))
+        .filter_map(|k| {
+            let (t, x) = (&t[k..k + 5], &x[k..k + 5]);
+            if t.windows(2).any(|s| !(s[1] > s[0] && s[1] - s[0] <= gap)) {
+                return None;
+            }
+            let w: Vec<f64> = (0..5)
+                .map(|i| {
+                    1.0 / (0..5)
+                        .filter(|&j| j != i)
+                        .map(|j| t[i] - t[j])
+                        .product::<f64>()
+                })
+                .collect();
+            let gain = w.iter().map(|w| w * w).sum::<f64>().sqrt();
+            Some(w.iter().zip(x).map(|(w, x)| w * x).sum::<f64>().abs() / gain)
+        })
+        .collect();
+    if d.is_empty() {
         return white_noise_rms(x);
     }
-    fourth_difference_rms(
-        x[..n]
-            .windows(5)
-            .enumerate()
-            .filter(|&(k, _)| even(k))
-            .map(|(_, w)| w),
-    )
+    super::stats::mean(&d) / (2.0 / std::f64::consts::PI).sqrt()
 }
 
 /// σ from the mean absolute fourth difference of the windows (see [`white_noise_rms`]).
@@ -1195,32 +1192,52 @@ mod tests {
     }
 
     #[test]
-    fn each_sample_keeps_its_place_on_the_grid_through_jitter_a_dropped_sample_and_a_gap() {
-        let (t, kept) = holed_instants(0.24);
-        let places = grid_places(&t, 0.001);
-        for (p, &j) in places.iter().zip(&kept) {
-            assert!(
-                (p - places[0] - j as f64 * 0.001).abs() < 1e-9,
-                "sample {j} at {p}"
-            );
-        }
-        let stretches = unbroken(&t, GAP_STEPS * 0.001);
-        assert_eq!(
-            stretches,
-            [0..78, 78..178],
-            "the gap splits; the two dropped do not"
+    fn a_gap_splits_a_recording_into_stretches_and_a_dropped_sample_does_not() {
+        let (t, _) = holed_instants(0.45);
+        assert_eq!(unbroken(&t, GAP_STEPS * 0.001), [0..78, 78..178]);
+    }
+
+    #[test]
+    fn on_jittered_instants_an_angles_white_noise_reaches_the_weak_acceleration_as_on_even_ones() {
+        // White noise of 0.1 mrad in an angle standing still, sampled at 1 kHz with a jitter of
+        // up to 0.45 of a step: read onto the grid, its smoothed q̈ has the rms the weak form's
+        // gain gives for even samples (a little less: reading onto the grid averages
+        // neighbours). Differentiated on the jittered instants and smoothed by index, the
+        // quartics' weights no longer sum by parts and the noise comes through many times.
+        let (h, dt, sigma) = (0.02, 0.001, 1e-4);
+        let mut uniform = uniforms(5);
+        let t: Vec<f64> = (0..4000)
+            .map(|j| j as f64 * dt + 0.9 * dt * (uniform() - 0.5))
+            .collect();
+        let x: Vec<f64> = t
+            .iter()
+            .map(|_| sigma * 12f64.sqrt() * (uniform() - 0.5))
+            .collect();
+        let rms_inside = |a: &[f64]| crate::identify::stats::rmse(&a[200..3800]);
+        let expected = sigma * weak_noise_gains(h, dt).2;
+        let on_the_grid = rms_inside(&weak_rates_at(&t, &x, h, dt).1);
+        assert!(
+            (0.6..1.05).contains(&(on_the_grid / expected)),
+            "{on_the_grid} against {expected}"
+        );
+        let on_the_instants = rms_inside(&weak_rates(&t, &x, h, dt).1);
+        assert!(
+            on_the_instants > 3.0 * expected,
+            "{on_the_instants} against {expected}"
         );
     }
 
     #[test]
-    fn through_dropped_samples_and_a_gap_the_weak_smoother_leaves_a_straight_line_straight() {
+    fn through_jitter_dropped_samples_and_a_gap_the_weak_smoother_leaves_a_straight_line_straight()
+    {
         // Summed over the samples there are, a moving average of a line sampled unevenly is
-        // off the line (more samples on one side of a dropped one, or across a gap); on the
-        // grid's slots, filled in, it is not. Away from each stretch's ends by the smoother's
-        // support (12 slots), where its averages are one-sided.
-        let (t, kept) = holed_instants(0.0);
+        // off the line (more samples on one side of a dropped one, or across a gap); read onto
+        // the grid, smoothed and read back, it is not. Away from each stretch's ends by the
+        // smoother's support (12 steps) and the grid's own offset (under a step each), where
+        // its averages are one-sided.
+        let (t, kept) = holed_instants(0.45);
         let line: Vec<f64> = t.iter().map(|t| 2.0 - 3.0 * t).collect();
-        let inside = |j: usize| (12..68).contains(&j) || (112..188).contains(&j);
+        let inside = |j: usize| (14..66).contains(&j) || (114..186).contains(&j);
         let off = |smooth: &[f64]| {
             (smooth.iter().zip(&line).zip(&kept))
                 .filter(|(_, j)| inside(**j))
@@ -1241,13 +1258,14 @@ mod tests {
     }
 
     #[test]
-    fn an_encoders_noise_is_read_from_the_evenly_sampled_windows_when_samples_are_dropped() {
+    fn an_encoders_noise_is_read_through_jittered_instants_and_dropped_samples() {
         // A 2 Hz swing of 0.5 rad at 250 Hz with white noise of 1 mrad rms, a tenth of the
-        // samples dropped: across a dropped sample the swing's cubic does not cancel.
+        // samples dropped and each instant up to 0.45 of a step off its slot: by index, the
+        // swing's cubic does not cancel across a dropped sample, nor its rate times the jitter.
         let mut uniform = uniforms(3);
         let (mut t, mut x) = (vec![], vec![]);
         for j in 0..5000 {
-            let tj = j as f64 / 250.0;
+            let tj = (j as f64 + 0.9 * (uniform() - 0.5)) / 250.0;
             let noise = 1e-3 * 12f64.sqrt() * (uniform() - 0.5);
             if uniform() > 0.1 {
                 t.push(tj);
