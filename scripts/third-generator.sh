@@ -5,7 +5,8 @@
 # on is said, its log kept). The rig binary: scripts/rig-binary.sh. SAMEJUMP=1: a jump at the
 # same instant in both runs. PLANT=link: paper A's link equation (scripts/link-generator.py,
 # `rig identify --model link`). DROP=tenth|pause: each case's files as a logger that drops
-# samples or stalls would have written them (scripts/drop-rows.py).
+# samples or stalls would have written them (scripts/drop-rows.py). JITTER=J: each sample's
+# instant up to J of a step off its slot (default 0.1; under 0.5 keeps the order).
 set -euo pipefail
 source "$(dirname "$0")/rig-binary.sh"
 OUT=$1; S=$2; shift 2
