@@ -440,9 +440,10 @@ fn resampled(t: &[f64], x: &[f64], at: &[f64]) -> Vec<f64> {
 }
 
 /// Whether `t` is its own uniform grid of step `dt` (every step `dt` to rounding): then the
-/// smoother runs on the samples as they are.
+/// smoother runs on the samples as they are. So it does where `dt` is no step (not positive
+/// and finite): no grid can be laid.
 fn on_its_grid(t: &[f64], dt: f64) -> bool {
-    t.windows(2).all(|w| (w[1] - w[0] - dt).abs() <= 1e-6 * dt)
+    !(dt > 0.0 && dt.is_finite()) || t.windows(2).all(|w| (w[1] - w[0] - dt).abs() <= 1e-6 * dt)
 }
 
 /// [`weak_smooth`] of `x` sampled at the instants `t` with the step `dt`: stretch by stretch
@@ -1189,6 +1190,18 @@ mod tests {
             .map(|&j| 5.0 + j as f64 * h + 2.0 * jitter * h * (uniform() - 0.5))
             .collect();
         (t, kept)
+    }
+
+    #[test]
+    fn with_no_step_to_lay_a_grid_the_weak_smoother_keeps_one_value_a_sample() {
+        let (t, _) = holed_instants(0.45);
+        let x: Vec<f64> = t.iter().map(|t| t.sin()).collect();
+        for dt in [0.0, -1.0, f64::NAN, f64::INFINITY] {
+            let s = weak_smooth_at(&t, &x, 0.02, dt);
+            let (v, a) = weak_rates_at(&t, &x, 0.02, dt);
+            assert_eq!((s.len(), v.len(), a.len()), (t.len(), t.len(), t.len()));
+            assert!(s.iter().all(|s| s.is_finite()), "dt {dt}: {s:?}");
+        }
     }
 
     #[test]
