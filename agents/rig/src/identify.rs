@@ -592,6 +592,10 @@ fn report_json(
             "half_support_s": num(res.rate_window),
             "rmse_of": "the torque through the smoother",
             "angle_read_as_taut_string": res.strung,
+            // Widened from the noise rule's for q̈ alone, where a filter on the angle was then
+            // named (its undoing carries the counts' noise through T·q⃛).
+            "widened_from_s": res.widened_from.map(|w| num(w.0)),
+            "widened_for_angle_lag_s": res.widened_from.map(|w| num(w.1)),
         });
         v["damping"] = num(get("damping_nms_per_rad"));
     }
@@ -646,8 +650,15 @@ fn weak_form_line(res: &Identified) -> String {
             res.strung.join(", ")
         )
     };
+    let widened = res.widened_from.map_or(String::new(), |(from, tc)| {
+        format!(
+            " (widened from {} ms: a first selection found the angle lagging by {} ms, and a first-order filter undone carries the counts' noise through T·q⃛)",
+            sig(from * 1e3),
+            sig(tc * 1e3)
+        )
+    });
     format!(
-        "link equation in weak form: the torque, q̇, q̈ and every effect through one smoother of half-support {} ms; the RMSEs are of the smoothed torque{strung}",
+        "link equation in weak form: the torque, q̇, q̈ and every effect through one smoother of half-support {} ms{widened}; the RMSEs are of the smoothed torque{strung}",
         sig(res.rate_window * 1e3)
     )
 }

@@ -1813,12 +1813,7 @@ const WEAK_NOISE_SHARE: f64 = 0.1;
 /// of a step), so the narrowest quiet one is taken. Widths beyond the runs' unused ends
 /// ([`Problem::edge`]) are not tried.
 fn weak_window(raw: &mut Problem, rows: &Rows, opts: &Options) -> Result<f64, IdentifyError> {
-    let tried: Vec<f64> = WEAK_WINDOWS
-        .iter()
-        .copied()
-        .filter(|&h| h <= raw.edge() + 1e-12)
-        .collect();
-    let Some(&widest) = tried.last() else {
+    let Some(&widest) = weak_windows_tried(raw).last() else {
         return Ok(raw.edge().max(raw.step));
     };
     raw.set_rate_window(widest);
@@ -1837,21 +1832,42 @@ fn weak_window(raw: &mut Problem, rows: &Rows, opts: &Options) -> Result<f64, Id
     )
     .ok_or(IdentifyError::Solve)?;
     let inertia = f.part(0)[0].abs();
-    let angle_noise = raw.angle_noise().max(raw.resolution / 12f64.sqrt());
     let torque_noise = raw
         .runs
         .iter()
         .map(|r| signals::white_noise_rms_at(&r.t, &r.tau))
         .fold(0.0, f64::max);
-    Ok(tried
+    Ok(quiet_window(raw, inertia, torque_noise, 0.0))
+}
+
+/// The weak form's half-supports tried on `p`: those within the runs' unused ends
+/// ([`Problem::edge`]).
+fn weak_windows_tried(p: &Problem) -> Vec<f64> {
+    WEAK_WINDOWS
         .iter()
         .copied()
+        .filter(|&h| h <= p.edge() + 1e-12)
+        .collect()
+}
+
+/// The narrowest half-support tried at which the counts' noise through I·q̈ — with a sensor's
+/// first-order filter of time constant `undone` undone on the angle, through I·(q̈ + T·q⃛)
+/// ([`signals::weak_acc_gain_undone`]) — is at most [`WEAK_NOISE_SHARE`] of the torque
+/// sensor's own noise of rms `torque_noise` through the same smoother (variances), the angle's
+/// noise as measured or its quantisation's, whichever is larger; the widest tried where none
+/// is (or the runs' unused ends, where none can be tried).
+pub(crate) fn quiet_window(p: &Problem, inertia: f64, torque_noise: f64, undone: f64) -> f64 {
+    let tried = weak_windows_tried(p);
+    let angle_noise = p.angle_noise().max(p.resolution / 12f64.sqrt());
+    (tried.iter().copied())
         .find(|&h| {
-            let (g_tau, _, g_acc) = signals::weak_noise_gains(h, raw.step);
+            let g_tau = signals::weak_noise_gains(h, p.step).0;
+            let g_acc = signals::weak_acc_gain_undone(h, p.step, undone);
             (inertia * angle_noise * g_acc).powi(2)
                 <= WEAK_NOISE_SHARE * (torque_noise * g_tau).powi(2)
         })
-        .unwrap_or(widest))
+        .or(tried.last().copied())
+        .unwrap_or(p.edge().max(p.step))
 }
 
 /// The smallest gain of the held-out fit an effect must bring: the likelihood ratio on the
