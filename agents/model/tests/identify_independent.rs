@@ -814,7 +814,7 @@ fn a_lag_found_at_the_bound_of_the_lags_searched_is_named_but_said_not_to_be_loc
     assert!(id.after.rmse < id.before.rmse, "{c:?}: {id:?}");
     // Lags inside the range carry no flag: the link's angle lagging under two counts of encoder
     // noise, seed 1 (28.6 ms; at the bound until jittered samples were read onto a uniform
-    // grid) and seed 2 (−18.5 ms).
+    // grid) and seed 2 (−18.5 ms). Seed 1's is located: within 5 % of the generator's.
     for seed in 1..3 {
         let c = Case {
             encoder_noise: 2.0,
@@ -830,18 +830,14 @@ fn a_lag_found_at_the_bound_of_the_lags_searched_is_named_but_said_not_to_be_loc
             "{c:?}: {:?}",
             id.effects
         );
+        if seed == 1 {
+            let (truth, delay) = (generate(&c, 0).size, param_of(&id, "delay_s"));
+            assert!(
+                (-delay / truth - 1.0).abs() < 0.05,
+                "{c:?}: δ {delay} s, the generator's lag {truth} s"
+            );
+        }
     }
-    // Seed 1's is located: within 5 % of the generator's.
-    let c = Case {
-        encoder_noise: 2.0,
-        ..cases(Plant::Link, Some(Inject::AngleLag), 1..2)[0]
-    };
-    let (truth, id) = (generate(&c, 0).size, identify_case(&c));
-    let delay = param_of(&id, "delay_s");
-    assert!(
-        (-delay / truth - 1.0).abs() < 0.05,
-        "{c:?}: δ {delay} s, the generator's lag {truth} s"
-    );
 }
 
 /// Identifies `c`, whose injected effect is dry friction, and checks that it is named alone,

@@ -546,14 +546,12 @@ pub fn white_noise_rms_at(t: &[f64], x: &[f64]) -> f64 {
             if t.windows(2).any(|s| !(s[1] > s[0] && s[1] - s[0] <= gap)) {
                 return None;
             }
-            let w: Vec<f64> = (0..5)
-                .map(|i| {
-                    1.0 / (0..5)
-                        .filter(|&j| j != i)
-                        .map(|j| t[i] - t[j])
-                        .product::<f64>()
-                })
-                .collect();
+            let w: [f64; 5] = std::array::from_fn(|i| {
+                1.0 / (0..5)
+                    .filter(|&j| j != i)
+                    .map(|j| t[i] - t[j])
+                    .product::<f64>()
+            });
             let gain = w.iter().map(|w| w * w).sum::<f64>().sqrt();
             Some(w.iter().zip(x).map(|(w, x)| w * x).sum::<f64>().abs() / gain)
         })
