@@ -648,7 +648,8 @@ fn on_a_lever_that_softens_a_tare_of_micronewton_metres_leaves_the_declared_loop
     // ±0.15 rad, 1 kHz ramp-and-hold with a torque lag: the tare (26 µN·m) changed the data
     // by a thousandth of its noise, yet the declared loop refitted from the grid landed in
     // another least squares, 8 % worse held out than the data as given (7.23 against
-    // 6.66 mN·m) with nothing named. The loop fitted untared is a start too now.
+    // 6.66 mN·m) with nothing named. The loop fitted untared is a start too now, and a fresh
+    // fit runs from the grid's best four starts: both reach 6.13 mN·m, within a thousandth.
     let c = Case {
         amplitude: 0.15,
         ..case(Plant::Lever, Some(Inject::TorqueLag), 1, 1000.0, 0.005)
@@ -660,12 +661,12 @@ fn on_a_lever_that_softens_a_tare_of_micronewton_metres_leaves_the_declared_loop
         id.tare
     );
     assert!(
-        id.tared.rmse <= id.before.rmse,
+        id.tared.rmse <= 1.001 * id.before.rmse,
         "tared {} against {} as given",
         id.tared.rmse,
         id.before.rmse
     );
-    assert!(id.after.rmse <= id.before.rmse);
+    assert!(id.after.rmse <= 1.001 * id.before.rmse);
 }
 
 #[test]
