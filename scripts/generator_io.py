@@ -1,7 +1,46 @@
-"""What the test-data generators (scripts/third-generator.py, scripts/link-generator.py) share:
-how a case's two runs are drawn and written. No plant, no effect: those are each generator's."""
+"""What the test-data generators (scripts/third-generator.py, scripts/link-generator.py,
+scripts/lever-generator.py) share: how a case's two runs are drawn and written, and the joint
+generators' four motions. No plant, no effect: those are each generator's."""
+import math
 import os
 import random
+
+
+def motion(kind, r, T, triangle_hz=(0.1, 0.6), chirp_end_hz=(0.8, 2.0), sine_hz=(0.05, 1.5)):
+    """A motion over a run of T seconds, drawn from `r`, as a function of time into [-1, 1]:
+    a triangle wave, a chirp (from 0.05-0.2 Hz to `chirp_end_hz` over T), a sum of four sines
+    (frequencies in `sine_hz`), or ramps (smoothstep, 0.5-2.5 s) and holds (0.3-2 s) between
+    random levels, starting from 0."""
+    if kind == "triangle":
+        f = r.uniform(*triangle_hz)
+        return lambda t: (2 / math.pi) * math.asin(math.sin(2 * math.pi * f * t))
+    if kind == "chirp":
+        f0, f1 = r.uniform(0.05, 0.2), r.uniform(*chirp_end_hz)
+        return lambda t: math.sin(2 * math.pi * (f0 * t + (f1 - f0) * t * t / (2 * T)))
+    if kind == "multisine":
+        comps = [(r.uniform(*sine_hz), r.uniform(0, 6.3), r.uniform(0.3, 1)) for _ in range(4)]
+        s = sum(a for _, _, a in comps)
+        return lambda t: sum(a * math.sin(2 * math.pi * f * t + p) for f, p, a in comps) / s
+    pts, t, lv = [], 0.0, 0.0
+    while t < T + 5:
+        nl = r.uniform(-1, 1)
+        dur = r.uniform(0.5, 2.5)
+        hold = r.uniform(0.3, 2.0)
+        pts.append((t, t + dur, lv, nl))
+        t += dur + hold
+        lv = nl
+
+    def f(t):
+        prev = 0.0
+        for a, b, l0, l1 in pts:
+            if t < a:
+                return prev
+            if t <= b:
+                x = (t - a) / (b - a)
+                return l0 + (l1 - l0) * (3 * x * x - 2 * x ** 3)
+            prev = l1
+        return prev
+    return f
 
 
 def write_run(path, header, rows):

@@ -10,7 +10,7 @@ Usage: third-generator.py OUTDIR EFFECT SEED  -> OUTDIR/fit.csv, OUTDIR/ho.csv, 
        third-generator.py --effects              -> the EFFECT names
 """
 import math, random, sys, os
-from generator_io import case_args, write_case, write_run
+from generator_io import case_args, motion, write_case, write_run
 
 EFFECTS = "none backlash hysteresis lag slip tstep drift kstep stop coulomb viscous ripple".split()
 out, effect, seed = case_args("third-generator.py", EFFECTS)
@@ -32,39 +32,6 @@ rest = rng.uniform(1.0, 2.5)
 truth = dict(effect=effect, k=k, tau_pk=tau_pk, phi_pk=phi_pk, rate=rate,
              noise=noise, counts=counts, T=T)
 
-
-def motion(kind, r):
-    """phi(t)/phi_pk in [-1, 1], zero during the rest."""
-    if kind == "triangle":
-        f = r.uniform(0.1, 0.6)
-        return lambda t: (2 / math.pi) * math.asin(math.sin(2 * math.pi * f * t))
-    if kind == "chirp":
-        f0, f1 = r.uniform(0.05, 0.2), r.uniform(0.8, 2.0)
-        return lambda t: math.sin(2 * math.pi * (f0 * t + (f1 - f0) * t * t / (2 * T)))
-    if kind == "multisine":
-        comps = [(r.uniform(0.05, 1.5), r.uniform(0, 6.3), r.uniform(0.3, 1)) for _ in range(4)]
-        s = sum(a for _, _, a in comps)
-        return lambda t: sum(a * math.sin(2 * math.pi * f * t + p) for f, p, a in comps) / s
-    # ramps and holds between random levels
-    pts, t, lv = [], 0.0, 0.0
-    while t < T + 5:
-        nl = r.uniform(-1, 1)
-        dur = r.uniform(0.5, 2.5)
-        hold = r.uniform(0.3, 2.0)
-        pts.append((t, t + dur, lv, nl))
-        t += dur + hold
-        lv = nl
-    def f(t):
-        prev = 0.0
-        for a, b, l0, l1 in pts:
-            if t < a:
-                return prev
-            if t <= b:
-                x = (t - a) / (b - a)
-                return l0 + (l1 - l0) * (3 * x * x - 2 * x ** 3)
-            prev = l1
-        return prev
-    return f
 
 
 # effect parameters (drawn once: fit and held-out runs share the plant)
@@ -99,7 +66,7 @@ truth["params"] = p
 
 def run(path, r, jump_frac):
     kind = r.choice(["triangle", "chirp", "multisine", "ramps"])
-    m = motion(kind, r)
+    m = motion(kind, r, T)
     n = int((T + rest) * rate)
     play = [0.0] * len(p.get("w", []))
     y = None

@@ -4,14 +4,17 @@
 # case with the held-out RMSE after/before and the effects named (a case `rig identify` fails
 # on is said, its log kept). The rig binary: scripts/rig-binary.sh. SAMEJUMP=1: a jump at the
 # same instant in both runs. PLANT=link: paper A's link equation (scripts/link-generator.py,
-# `rig identify --model link`). DROP=tenth|pause: each case's files as a logger that drops
-# samples or stalls would have written them (scripts/drop-rows.py). JITTER=J: each sample's
-# instant up to J of a step off its slot (default 0.1; under 0.5 keeps the order).
+# `rig identify --model link`). PLANT=lever: paper B's lever with Bouc-Wen friction
+# (scripts/lever-generator.py, `rig identify --model restoring`). DROP=tenth|pause: each
+# case's files as a logger that drops samples or stalls would have written them
+# (scripts/drop-rows.py). JITTER=J: each sample's instant up to J of a step off its slot
+# (default 0.1; under 0.5 keeps the order).
 set -euo pipefail
 source "$(dirname "$0")/rig-binary.sh"
 OUT=$1; S=$2; shift 2
 gen=$here/scripts/third-generator.py; model=linear
 [ "${PLANT:-linear}" = link ] && { gen=$here/scripts/link-generator.py; model=link; }
+[ "${PLANT:-linear}" = lever ] && { gen=$here/scripts/lever-generator.py; model=restoring; }
 EFF=${*:-$(python3 "$gen" --effects)}
 for e in $EFF; do for s in $(seq 0 $((S-1))); do
   d=$OUT/$e-$s; python3 "$gen" "$d" "$e" "$s"
