@@ -94,7 +94,6 @@ elif effect == "ripple":
 truth["params"] = p
 
 
-
 def spring_torque(phi, t, t_jump):
     """The elastic torque at the joint: the spring at its angle alpha, seen through the lever,
     with the gap, the stop and the stiffness change where they act."""
@@ -121,9 +120,8 @@ def run(path, r, jump_frac):
     n_fine = int((T + rest + lead) * fine) + 2
 
     def phi_at(t):
-        tm = t - rest
-        x = 0.0 if tm < 0 else m(tm)
-        return phi_pk * x * (min(tm, 1.0) if tm >= 0 else 0.0)
+        tm = t - rest  # at rest, then eased in over the first second
+        return 0.0 if tm < 0 else phi_pk * m(tm) * min(tm, 1.0)
 
     def zdot(z, dphi):
         return dphi - beta_bw * abs(dphi) * abs(z) ** (n_bw - 1) * z - gamma_bw * dphi * abs(z) ** n_bw

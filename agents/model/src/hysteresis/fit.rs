@@ -338,22 +338,23 @@ fn fit_group(
     // A fit afresh runs Levenberg–Marquardt from the grid's best few starts and keeps the
     // best end: one start's basin was a loop a third as tall as the plant's (a lever with a
     // sharp Bouc-Wen yield, 8× the noise held out, where the best of four reached 1.1×). A
-    // refit goes on from the loop it replaces, which is close: one start.
-    let k_starts = if opts.start.is_some() {
+    // refit goes on from the loop it replaces, which is close: one start. With no steps the
+    // best start is the fit.
+    let k_starts = if opts.start.is_some() || opts.max_evaluations == 0 {
         1
     } else {
         opts.fresh_starts.max(1)
     };
+    // Stop when a step lowers the sum of squares by less than 1e-10 of itself (or moves θ
+    // by less than 1e-10): the crate's default of 30 ε is never reached on a model with kinks,
+    // so every fit ran to the evaluation cap.
+    let lm = LevenbergMarquardt::new()
+        .with_ftol(1e-10)
+        .with_xtol(1e-10)
+        .with_patience(opts.max_evaluations / 5 + 1);
     let mut best = (f64::INFINITY, DVector::zeros(4 + c0.len()));
     for (sse0, theta) in scored.into_iter().take(k_starts) {
-        // Stop when a step lowers the sum of squares by less than 1e-10 of itself (or moves
-        // θ by less than 1e-10): the crate's default of 30 ε is never reached on a model with
-        // kinks, so every fit ran to the evaluation cap.
         problem.set_params(&theta);
-        let lm = LevenbergMarquardt::new()
-            .with_ftol(1e-10)
-            .with_xtol(1e-10)
-            .with_patience(opts.max_evaluations / 5 + 1);
         if opts.max_evaluations > 0 {
             (problem, _) = lm.minimize(problem);
         }
