@@ -304,6 +304,55 @@ fn linear_model_finds_coulomb_friction() {
     assert!((f - 0.02).abs() < 0.002, "{f}");
 }
 
+/// A file of `t,phi,tau` at 500 Hz for 20 s: at rest for 1 s, then deflection `phi(t)`, the
+/// torque a 2 N·m/rad spring with viscous friction of 0.02 N·m·s/rad and ±0.5 mN·m of noise.
+fn spring_file(name: &str, phi: impl Fn(f64) -> f64) -> PathBuf {
+    let mut state = 12345u64;
+    let mut noise = || {
+        state = state
+            .wrapping_mul(6364136223846793005)
+            .wrapping_add(1442695040888963407);
+        ((state >> 11) as f64 / (1u64 << 53) as f64 - 0.5) * 1e-3
+    };
+    let mut csv = String::from("t,phi,tau\n");
+    for k in 0..10_000 {
+        let t = k as f64 / 500.0;
+        let (x, rate) = (phi(t), (phi(t + 1e-4) - phi(t - 1e-4)) / 2e-4);
+        csv.push_str(&format!("{t},{x},{}\n", 2.0 * x + 0.02 * rate + noise()));
+    }
+    let path = scratch(&format!("{name}.csv"));
+    std::fs::write(&path, csv).unwrap();
+    path
+}
+
+#[test]
+fn a_fit_at_one_speed_is_said_to_be_one_where_rate_and_friction_cannot_be_told_apart() {
+    use std::f64::consts::PI;
+    // A 0.3 Hz triangle of ±0.05 rad moves at 4·0.05·0.3 = 0.06 rad/s on every stroke.
+    let moving = |t: f64| (t - 1.0).max(0.0);
+    let tri = spring_file("speed-tri", |t| {
+        0.05 * (2.0 / PI) * (2.0 * PI * 0.3 * moving(t)).sin().asin()
+    });
+    let v = identify(&tri, &["--model", "linear"]);
+    let notes = v["notes"].as_array().unwrap();
+    let speed = notes
+        .iter()
+        .filter_map(|n| n.as_str())
+        .find(|n| n.starts_with("speed:"))
+        .unwrap_or_else(|| panic!("{notes:?}"));
+    assert!(speed.contains("0.06"), "{speed}");
+    // A sine of the same swing moves at every speed up to its peak: nothing to say.
+    let sine = spring_file("speed-sine", |t| 0.05 * (2.0 * PI * 0.3 * moving(t)).sin());
+    let v = identify(&sine, &["--model", "linear"]);
+    let notes = v["notes"].as_array().unwrap();
+    assert!(
+        notes
+            .iter()
+            .all(|n| !n.as_str().unwrap().starts_with("speed:")),
+        "{notes:?}"
+    );
+}
+
 #[test]
 fn linear_model_finds_backlash() {
     let v = identify(

@@ -405,11 +405,45 @@ fn notes(res: &Identified, fit: &[Run], held: &[Run]) -> Vec<String> {
             ));
         }
     }
+    // A fit at one speed cannot tell a torque in proportion to the rate from dry friction.
+    let joint = res.model.is_joint();
+    let fit_motion = fit.iter().filter_map(|r| {
+        let x = if joint {
+            r.phi.as_deref()
+        } else {
+            r.q.as_deref()
+        };
+        x.map(|x| (&r.t[..], x))
+    });
+    if let Some((lo, hi)) = rig_model::identify::signals::speeds(fit_motion, SPEED_SPAN_S)
+        .filter(|(lo, hi)| *hi < 1.25 * *lo)
+    {
+        let rate_named = res.effects.iter().any(|e| {
+            matches!(
+                e.effect,
+                Effect::ViscousFriction | Effect::SensorDelay | Effect::CoulombFriction
+            )
+        });
+        n.push(format!(
+            "speed: the fit data move at one speed ({} to {} rad/s over most of their motion, a triangle wave's): a torque in proportion to the rate (viscous friction, a lag) is a constant height on each stroke there, the shape of dry friction and of the loop, so the fit cannot tell them apart{}; fit on a test at several speeds (a chirp, a multi-sine, ramps of different lengths)",
+            sig(lo),
+            sig(hi),
+            if rate_named {
+                " (what was named of them may be another of them)"
+            } else {
+                ""
+            }
+        ));
+    }
     for s in &res.residual.structure {
         n.push(format!("unexplained: {s}"));
     }
     n
 }
+
+/// The span the rate is read over for `signals::speeds`: a count of a 14-bit encoder is 0.008 rad/s
+/// over it, and a triangle wave's turn at 0.5 Hz blurs 5 % of its samples.
+const SPEED_SPAN_S: f64 = 0.05;
 
 /// An effect's parameters; an offset's sensor as `on`.
 fn effect_params_json(e: &rig_model::identify::Found) -> Value {

@@ -756,6 +756,48 @@ pub fn steps(x: &[f64]) -> usize {
     count
 }
 
+/// The speeds a test moves at: over runs given as (time [s], deflection [rad]), the rate as
+/// a difference over `span_s` (long enough that a count of the encoder is a small part of it),
+/// and, over the samples that move (a rate over a fifth of the 95th percentile of |rate|), the
+/// 20th and 80th percentiles of |rate| [rad/s]. `None` where fewer than 20 samples move.
+///
+/// A triangle wave moves at one speed (the two nearly equal): there a torque in proportion to
+/// the rate, viscous friction or a lag, is a constant height on each stroke, the shape of dry
+/// friction or of the loop, and the fit cannot tell them apart. A sine's are 0.46 and 0.96 of
+/// its peak rate.
+pub fn speeds<'a>(
+    runs: impl IntoIterator<Item = (&'a [f64], &'a [f64])>,
+    span_s: f64,
+) -> Option<(f64, f64)> {
+    let mut rates = Vec::new();
+    for (t, x) in runs {
+        let mut j = 0;
+        for i in 0..t.len() {
+            j = j.max(i + 1);
+            while j < t.len() && t[j] - t[i] < span_s {
+                j += 1;
+            }
+            if j == t.len() {
+                break;
+            }
+            let r = (x[j] - x[i]) / (t[j] - t[i]);
+            if r.is_finite() {
+                rates.push(r.abs());
+            }
+        }
+    }
+    if rates.len() < 20 {
+        return None;
+    }
+    rates.sort_by(f64::total_cmp);
+    let p95 = rates[rates.len() * 95 / 100];
+    let moving: Vec<f64> = rates.into_iter().filter(|r| *r > 0.2 * p95).collect();
+    if moving.len() < 20 {
+        return None;
+    }
+    Some((moving[moving.len() / 5], moving[moving.len() * 4 / 5]))
+}
+
 /// Uniform numbers in [0, 1) from a tiny LCG: the identify tests' own, reproducible noise.
 #[cfg(test)]
 pub(crate) fn uniforms(mut state: u64) -> impl FnMut() -> f64 {
@@ -769,6 +811,57 @@ pub(crate) fn uniforms(mut state: u64) -> impl FnMut() -> f64 {
 
 #[cfg(test)]
 mod tests {
+
+    /// Samples of x(t) at `rate_hz` over `secs`.
+    fn sampled(x: impl Fn(f64) -> f64, rate_hz: f64, secs: f64) -> (Vec<f64>, Vec<f64>) {
+        let t: Vec<f64> = (0..(rate_hz * secs) as usize)
+            .map(|k| k as f64 / rate_hz)
+            .collect();
+        let v = t.iter().map(|&t| x(t)).collect();
+        (t, v)
+    }
+
+    #[test]
+    fn a_triangle_wave_moves_at_one_speed_and_a_sine_over_the_spread_its_cosine_gives() {
+        use std::f64::consts::PI;
+        // A 0.3 Hz triangle of ±0.1 rad at 500 Hz: 4·0.1·0.3 = 0.12 rad/s on every stroke.
+        let tri = sampled(
+            |t| 0.1 * (2.0 / PI) * (2.0 * PI * 0.3 * t).sin().asin(),
+            500.0,
+            30.0,
+        );
+        let (lo, hi) = speeds([(&tri.0[..], &tri.1[..])], 0.05).unwrap();
+        assert!(
+            (lo / 0.12 - 1.0).abs() < 0.01 && (hi / 0.12 - 1.0).abs() < 0.01,
+            "{lo} {hi}"
+        );
+        // A sine's |rate| is its peak times |cos θ|, θ uniform: P(|cos θ| < c) = 1 − (2/π)·acos c.
+        // The moving samples are those over a fifth of the 95th percentile, cos(0.05·π/2).
+        let quantile = |p: f64| (PI / 2.0 * (1.0 - p)).cos();
+        let cut = 0.2 * quantile(0.95);
+        let below = 1.0 - 2.0 / PI * cut.acos();
+        let (want_lo, want_hi) = (
+            quantile(below + 0.2 * (1.0 - below)),
+            quantile(below + 0.8 * (1.0 - below)),
+        );
+        let w = 2.0 * PI * 0.5;
+        let sine = sampled(|t| 0.1 * (w * t).sin(), 1000.0, 40.0);
+        let (lo, hi) = speeds([(&sine.0[..], &sine.1[..])], 0.01).unwrap();
+        // The difference over 10 ms reads the peak rate 0.1·ω low by sinc(ω·5 ms) ≈ 0.99996.
+        assert!(
+            (lo / (0.1 * w) - want_lo).abs() < 0.005,
+            "{lo} against {}",
+            want_lo * 0.1 * w
+        );
+        assert!(
+            (hi / (0.1 * w) - want_hi).abs() < 0.005,
+            "{hi} against {}",
+            want_hi * 0.1 * w
+        );
+        assert!(hi / lo > 1.9);
+        // Too short to tell: no answer, not a guess.
+        assert_eq!(speeds([(&sine.0[..10], &sine.1[..10])], 0.01), None);
+    }
     use super::*;
 
     #[test]
