@@ -307,18 +307,15 @@ fn linear_model_finds_coulomb_friction() {
 /// A file of `t,phi,tau` at 500 Hz for 20 s: at rest for 1 s, then deflection `phi(t)`, the
 /// torque a 2 N·m/rad spring with viscous friction of 0.02 N·m·s/rad and ±0.5 mN·m of noise.
 fn spring_file(name: &str, phi: impl Fn(f64) -> f64) -> PathBuf {
-    let mut state = 12345u64;
-    let mut noise = || {
-        state = state
-            .wrapping_mul(6364136223846793005)
-            .wrapping_add(1442695040888963407);
-        ((state >> 11) as f64 / (1u64 << 53) as f64 - 0.5) * 1e-3
-    };
+    let mut noise = rig_sim::noise::Noise::new(12345);
     let mut csv = String::from("t,phi,tau\n");
     for k in 0..10_000 {
         let t = k as f64 / 500.0;
         let (x, rate) = (phi(t), (phi(t + 1e-4) - phi(t - 1e-4)) / 2e-4);
-        csv.push_str(&format!("{t},{x},{}\n", 2.0 * x + 0.02 * rate + noise()));
+        csv.push_str(&format!(
+            "{t},{x},{}\n",
+            2.0 * x + 0.02 * rate + (noise.uniform() - 0.5) * 1e-3
+        ));
     }
     let path = scratch(&format!("{name}.csv"));
     std::fs::write(&path, csv).unwrap();

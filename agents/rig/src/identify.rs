@@ -441,8 +441,8 @@ fn notes(res: &Identified, fit: &[Run], held: &[Run]) -> Vec<String> {
     n
 }
 
-/// The span the rate is read over for `signals::speeds`: a count of a 14-bit encoder is 0.008 rad/s
-/// over it, and a triangle wave's turn at 0.5 Hz blurs 5 % of its samples.
+/// The span the rate is read over for `signals::speeds`: a count of a 14-bit encoder is
+/// 0.008 rad/s over it, and a triangle wave's turn at 0.5 Hz blurs 5 % of its samples.
 const SPEED_SPAN_S: f64 = 0.05;
 
 /// An effect's parameters; an offset's sensor as `on`.

@@ -634,7 +634,8 @@ pub fn identify(
         let sensor = |t: &Tare| t.torque_zero - ripple_at_rest;
         let zero = tare.iter().map(sensor).sum::<f64>() / tare.len() as f64;
         let peak = raw.tau.iter().fold(0.0f64, |m, v| m.max(v.abs()));
-        let tare_pays = rmse(&e_before) - rmse(&e_tared) >= opts.min_gain * rmse(&e_before);
+        let tare_gain = rmse(&e_before) - rmse(&e_tared);
+        let tare_pays = tare_gain >= opts.min_gain * rmse(&e_before);
         let stands_out = |t: &Tare| {
             let at_rest = (t.rest.1 - t.rest.0).max(1) as f64;
             let floor = if tare_pays {
@@ -653,7 +654,7 @@ pub fn identify(
                 effect: Effect::Offset,
                 on: Some(Place::Torque),
                 params: vec![("bias_nm", zero), ("from_tare", 1.0)],
-                gain_rmse: rmse(&e_before) - rmse(&e_tared),
+                gain_rmse: tare_gain,
                 validation_gain: f64::NAN,
                 held_out_at_s: vec![],
             });

@@ -811,6 +811,7 @@ pub(crate) fn uniforms(mut state: u64) -> impl FnMut() -> f64 {
 
 #[cfg(test)]
 mod tests {
+    use super::*;
 
     /// Samples of x(t) at `rate_hz` over `secs`.
     fn sampled(x: impl Fn(f64) -> f64, rate_hz: f64, secs: f64) -> (Vec<f64>, Vec<f64>) {
@@ -862,7 +863,6 @@ mod tests {
         // Too short to tell: no answer, not a guess.
         assert_eq!(speeds([(&sine.0[..10], &sine.1[..10])], 0.01), None);
     }
-    use super::*;
 
     #[test]
     fn local_rates_are_exact_on_a_parabola_with_irregular_steps() {
