@@ -1,6 +1,7 @@
 //! Criterion benchmarks of the hot paths of the model core:
-//! one EKF + stiffness-observer step, one restoring-torque step, one parallel (five-bar)
-//! force estimate from joint angles and torques, one allocation solve.
+//! one EKF + stiffness-observer step, one restoring-torque step, one fit of the restoring loop
+//! (straight envelope lines and a lever's curve), one parallel (five-bar) force estimate from
+//! joint angles and torques, one allocation solve.
 //!
 //! Run: `cargo bench -p rig-model --bench model`.
 
@@ -12,8 +13,10 @@ use criterion::{Criterion, criterion_group, criterion_main};
 use nalgebra::DVector;
 use rig_model::allocation::AllocationProblem;
 use rig_model::hysteresis::{
-    AS5048A_COUNT_RAD, RestoringCurve, RestoringParams, RestoringTorqueModel,
+    AS5048A_COUNT_RAD, Envelope, FitOptions, FitSample, RestoringCurve, RestoringParams,
+    RestoringTorqueModel, fit_restoring,
 };
+use rig_model::lever::LeverVsa;
 use rig_model::observer::{DecoupledObserver, EkfConfig, ImpedanceSample};
 use rig_model::planar::{FiveBar, PlanarRobot, end_effector_force, s_matrix};
 
@@ -69,6 +72,51 @@ fn restoring_step(c: &mut Criterion) {
     });
 }
 
+/// One fit of the loop (`rig identify`'s inner step, run hundreds of times per case) on 4000
+/// samples of paper B's lever at a 9 mm pivot swung ±0.12 rad: with a config the envelope
+/// follows the lever's curve, whose s(φ, d) the fit evaluates once per sample; straight lines
+/// beside it for the ratio.
+fn restoring_fit(c: &mut Criterion) {
+    let vsa = LeverVsa::paper_b();
+    let d = 0.009;
+    let truth = RestoringParams {
+        k: vsa.stiffness_at_rest(d),
+        h: 0.004,
+        a_s: 3.0,
+        n: 0.7,
+    };
+    let mut m = RestoringTorqueModel::new(
+        RestoringCurve::constant(truth).with_envelope(Envelope::Lever(vsa)),
+        AS5048A_COUNT_RAD,
+    );
+    let samples: Vec<FitSample> = (0..4000)
+        .map(|i| {
+            let t = i as f64 * 1e-3;
+            let phi = 0.12 * (0.7 + 0.3 * (0.9 * t).cos()) * (2.1 * t).sin();
+            FitSample {
+                phi,
+                tau: m.update(phi, d),
+                d,
+            }
+        })
+        .collect();
+    let mut g = c.benchmark_group("restoring fit, 4000 samples");
+    g.sample_size(10);
+    for (name, envelope) in [
+        ("lever envelope", Envelope::Lever(vsa)),
+        ("straight lines", Envelope::Linear),
+    ] {
+        let opts = FitOptions {
+            envelope,
+            ..FitOptions::default()
+        };
+        g.bench_function(name, |b| {
+            b.iter(|| black_box(fit_restoring(black_box(&samples), &opts).unwrap()))
+        });
+    }
+    g.finish();
+}
+
 fn parallel_force(c: &mut Criterion) {
     let robot = five_bar();
     let home = robot.at_position(0.075, 0.2).unwrap();
@@ -110,6 +158,7 @@ criterion_group!(
     benches,
     observer_step,
     restoring_step,
+    restoring_fit,
     parallel_force,
     allocation_solve
 );

@@ -300,6 +300,10 @@ fn fit_group(
         runs: runs.to_vec(),
         dead_band: opts.dead_band,
         envelope: opts.envelope,
+        centre: runs
+            .iter()
+            .map(|r| r.iter().map(|s| opts.envelope.s(s.phi, s.d)).collect())
+            .collect(),
         tau,
         theta: DVector::zeros(4 + flat.len()),
         columns: flat,
@@ -442,6 +446,9 @@ struct GroupProblem<'a> {
     runs: Vec<&'a [FitSample]>,
     dead_band: f64,
     envelope: Envelope,
+    /// The envelope's centre line per unit of k at every sample, s(φ, d), per run: evaluated
+    /// once, as every replay of the fit feeds the same samples.
+    centre: Vec<Vec<f64>>,
     tau: DVector<f64>,
     /// Columns beside the loop (each over all samples, runs in order): θ[4..] their
     /// coefficients.
@@ -452,7 +459,16 @@ struct GroupProblem<'a> {
 impl GroupProblem<'_> {
     /// The torque the loop and the columns give at θ.
     fn predict(&self, theta: &DVector<f64>) -> Vec<f64> {
-        let mut pred = replay(params_of(theta), self.envelope, &self.runs, self.dead_band);
+        let curve = RestoringCurve::constant(params_of(theta)).with_envelope(self.envelope);
+        let mut pred = Vec::with_capacity(self.tau.len());
+        for (run, centre) in self.runs.iter().zip(&self.centre) {
+            let mut m = RestoringTorqueModel::new(curve.clone(), self.dead_band);
+            pred.extend(
+                run.iter()
+                    .zip(centre)
+                    .map(|(s, &c)| m.update_on(s.phi, s.d, c)),
+            );
+        }
         for (c, col) in theta.iter().skip(4).zip(&self.columns) {
             for (p, v) in pred.iter_mut().zip(col) {
                 *p += c * v;
@@ -745,6 +761,67 @@ mod tests {
             t.k
         );
         assert!(line.rmse > 10.0 * g.rmse);
+    }
+
+    #[test]
+    fn a_fits_replay_with_the_levers_curve_evaluated_once_per_sample_gives_the_replays_torques_exactly()
+     {
+        // The fit evaluates s(φ, d) once per sample and feeds it to every replay; the torques
+        // must be those of the model fed φ and d alone, over two runs at two pivots and with
+        // a column beside the loop.
+        let envelope = Envelope::Lever(crate::lever::LeverVsa::paper_b());
+        let run = |d: f64, amp: f64| -> Vec<FitSample> {
+            path(1500, amp)
+                .into_iter()
+                .map(|phi| FitSample { phi, tau: 0.0, d })
+                .collect()
+        };
+        let (a, b) = (run(0.004, 0.2), run(0.015, 0.05));
+        let runs: Vec<&[FitSample]> = vec![&a, &b];
+        let column: Vec<f64> = (0..a.len() + b.len()).map(|i| (i % 7) as f64).collect();
+        let problem = GroupProblem {
+            runs: runs.clone(),
+            dead_band: AS5048A_COUNT_RAD,
+            envelope,
+            centre: runs
+                .iter()
+                .map(|r| r.iter().map(|s| envelope.s(s.phi, s.d)).collect())
+                .collect(),
+            tau: DVector::zeros(column.len()),
+            columns: vec![column.clone()],
+            theta: DVector::zeros(5),
+        };
+        let p = RestoringParams {
+            k: 0.8,
+            h: 0.004,
+            a_s: 3.0,
+            n: 0.7,
+        };
+        let theta = DVector::from_vec(vec![p.k.ln(), p.h.ln(), p.a_s.ln(), p.n.ln(), 0.25]);
+        // The parameters as the problem reads them from θ (exp∘ln may move the last bit).
+        let p = params_of(&theta);
+        let want: Vec<f64> = replay(p, envelope, &runs, AS5048A_COUNT_RAD)
+            .iter()
+            .zip(&column)
+            .map(|(t, c)| t + 0.25 * c)
+            .collect();
+        let got = problem.predict(&theta);
+        assert_eq!(got.len(), want.len());
+        for (i, (g, w)) in got.iter().zip(&want).enumerate() {
+            assert_eq!(g.to_bits(), w.to_bits(), "sample {i}: {g} against {w}");
+        }
+        // The lever bends the lines here: straight ones give other torques.
+        let straight = replay(p, Envelope::Linear, &runs, AS5048A_COUNT_RAD);
+        let most = straight
+            .iter()
+            .zip(&column)
+            .zip(&want)
+            .map(|((s, c), w)| (s + 0.25 * c - w).abs())
+            .fold(0.0, f64::max);
+        assert!(
+            most > 1e-3,
+            "the straight lines within {most} N·m of the lever's"
+        );
     }
 
     #[test]

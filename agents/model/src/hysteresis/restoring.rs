@@ -359,6 +359,15 @@ impl RestoringTorqueModel {
     /// Feeds a deflection `phi` [rad] at pivot position `d` [m]; returns the torque [N·m].
     /// Non-finite input leaves the state as it was and returns the last estimate.
     pub fn update(&mut self, phi: f64, d: f64) -> f64 {
+        self.update_on(phi, d, self.curve.envelope.s(phi, d))
+    }
+
+    /// [`update`](Self::update) with the envelope's centre line per unit of k at this sample,
+    /// `s` = `self.curve().envelope().s(phi, d)`, evaluated by the caller. A fit replays the same
+    /// samples hundreds of times with other parameters, and a lever's s(φ, d) (an atan2, a
+    /// hypot and three cosines) is then most of the replay's cost: it evaluates s once per
+    /// sample and feeds it here. Given any other `s`, the loop follows other envelope lines.
+    pub fn update_on(&mut self, phi: f64, d: f64, s: f64) -> f64 {
         if !phi.is_finite() || !d.is_finite() {
             return self.tau;
         }
@@ -377,7 +386,7 @@ impl RestoringTorqueModel {
             // Virgin state: start on the centre line between the envelopes.
             self.detector = Some(ReversalDetector::new(self.dead_band, phi));
             self.segment = Segment::Transition;
-            self.vertex = (phi, p.k * self.curve.envelope.s(phi, d));
+            self.vertex = (phi, p.k * s);
             self.tau = self.vertex.1;
             self.tau_at_extreme = self.tau;
             return self.tau;
@@ -388,7 +397,7 @@ impl RestoringTorqueModel {
             self.segment = Segment::Transition;
         }
         let direction = det.direction();
-        let centre = p.k * self.curve.envelope.s(phi, d);
+        let centre = p.k * s;
         self.tau = self.evaluate(phi, centre, direction, &p);
         if new_extreme {
             self.tau_at_extreme = self.tau;
