@@ -1276,6 +1276,33 @@ fn with_the_configs_lever_envelope_the_loops_stiffness_is_the_levers_at_rest_and
         curved.after.rmse,
         straight.after.rmse
     );
+    // The curved loop's residual is not read for a bend: its lines are not straight.
+    assert_eq!(curved.residual.bend, None);
+    // Straight lines and no lever known (no config): nothing can name the geometry, and the
+    // report says the joint softens toward the ends, by about the lever's own closed form
+    // k(φ)/k(0) − 1 at the largest deflection held out.
+    let unknown = identify_runs(
+        &fit,
+        &held,
+        &Options {
+            model: Declared::Restoring,
+            ..Options::default()
+        },
+    );
+    let b = unknown.residual.bend.expect("a bend beside straight lines");
+    let d = plants::LEVER_PIVOT_M;
+    let want = vsa.stiffness_exact(b.x_max, d) / vsa.stiffness_at_rest(d) - 1.0;
+    assert!(want < -0.05, "the lever's own change {want}");
+    assert!(
+        b.share > 0.5 && (b.change / want - 1.0).abs() < 0.15,
+        "{b:?} against {want}"
+    );
+    let said = &unknown.residual.structure;
+    assert!(
+        said.iter()
+            .any(|t| t.contains("bends with the deflection") && t.contains("softer")),
+        "{said:?}"
+    );
 }
 
 /// A link (I = 0.03 kg·m², N = 0.02 N·m·s/rad: light damping) swung ±1.4 rad by four sines of

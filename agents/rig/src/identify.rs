@@ -603,6 +603,7 @@ fn report_json(
             "cross": res.residual.cross.iter().map(|c| json!({"input": c.input, "max_abs": num(c.max_abs), "lag_s": num(c.lag_s)})).collect::<Vec<_>>(),
             "loop_before": num(res.residual.loop_before),
             "loop_after": num(res.residual.loop_after),
+            "bend": res.residual.bend.map(|b| json!({"share": num(b.share), "x_max_rad": num(b.x_max), "stiffness_change": num(b.change)})),
             "structure": res.residual.structure,
         },
         "bias": res.bias.iter().map(|(r, b)| json!({"run": r, "mean_residual_nm": num(*b)})).collect::<Vec<_>>(),

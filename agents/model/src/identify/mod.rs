@@ -32,6 +32,7 @@ use crate::hysteresis::Envelope;
 use crate::lever::LeverVsa;
 pub use effects::{Effect, Place, Shaped};
 use model::{Transform, base_params, fit, fit_restoring_on};
+pub use report::Bend;
 pub use rows::Tare;
 use rows::{Problem, apply_tare, check_run};
 use select::Rows;
@@ -264,6 +265,10 @@ pub struct Residual {
     /// above unloading), < 0 it gives energy back (a lag of the torque, or a sign error).
     pub loop_before: f64,
     pub loop_after: f64,
+    /// How the held-out residual bends with the deflection beside straight lines (the linear
+    /// spring, or the restoring loop without a lever's envelope); said in `structure` where an
+    /// odd cubic takes a quarter of it and the stiffness changes by 3–90 % toward the ends.
+    pub bend: Option<Bend>,
     /// Plain-language remarks on structure left unexplained.
     pub structure: Vec<String>,
 }

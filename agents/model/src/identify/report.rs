@@ -3,7 +3,8 @@
 
 use super::model::{Fitted, Signals};
 use super::rows::Problem;
-use super::{Correlation, Heldout, Options, Residual, signals, stats};
+use super::{Correlation, Declared, Heldout, Options, Residual, signals, stats};
+use crate::hysteresis::Envelope;
 
 /// Held-out series: measured (tared), the declared model's and the final prediction.
 pub(crate) fn heldout(
@@ -72,6 +73,60 @@ pub(crate) fn loop_area(p: &Problem, x: &[f64], rows: &[usize], e: &[f64]) -> f6
     } else {
         0.0
     }
+}
+
+/// How the held-out residual bends with the deflection, beside a line in it.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Bend {
+    /// The share of the residual's sum of squares about a line in x (a + b·x) that an odd
+    /// cubic c·x³ beside the line takes, in [0, 1].
+    pub share: f64,
+    /// The swing: the 99th percentile of |x| over the rows [rad].
+    pub x_max: f64,
+    /// The joint's slope at ±x_max over its slope at rest, less one (< 0: softer toward the
+    /// ends): 3c·x_max²/k, with k the measured torque's slope at rest (τ ≈ a + k·x + c′·x³).
+    pub change: f64,
+}
+
+/// A bend is said where the cubic takes this share of the residual ...
+pub(crate) const BEND_SHARE: f64 = 0.25;
+/// ... and the stiffness changes toward the ends by this much ...
+pub(crate) const BEND_CHANGE: f64 = 0.03;
+/// ... but not by this much: beyond it the cubic's first-order reading fails (a joint 90 %
+/// softer at its ends, or ten times stiffer, is not a smooth bend: a stop, a slip, a fault).
+pub(crate) const BEND_CHANGE_MAX: f64 = 0.9;
+
+/// The bend of the residual `e` (indexed like `rows`) with the deflection `x` (indexed by
+/// row), and the measured torque `tau` (indexed by row) for the slope at rest. What straight
+/// lines leave of a joint whose stiffness changes with its deflection — a lever's geometry
+/// softens it toward the ends of its travel, a progressive spring or a stop's onset stiffens
+/// it — is an odd function of the deflection, to first order c·x³. `None` with under ten
+/// rows, a residual of another length or a degenerate fit.
+pub(crate) fn bend(x: &[f64], tau: &[f64], rows: &[usize], e: &[f64]) -> Option<Bend> {
+    if rows.len() < 10 || e.len() != rows.len() {
+        return None;
+    }
+    let xs: Vec<f64> = rows.iter().map(|&i| x[i]).collect();
+    let ts: Vec<f64> = rows.iter().map(|&i| tau[i]).collect();
+    let ones = vec![1.0; xs.len()];
+    let cubes: Vec<f64> = xs.iter().map(|v| v * v * v).collect();
+    let all: Vec<usize> = (0..xs.len()).collect();
+    let rss = |cols: &[&[f64]]| -> Option<(f64, Vec<f64>)> {
+        let c = stats::least_squares(cols, e, &all)?;
+        let fit = stats::combine(cols, &c, e.len());
+        Some((e.iter().zip(&fit).map(|(y, f)| (y - f).powi(2)).sum(), c))
+    };
+    let (line, _) = rss(&[&ones, &xs])?;
+    let (cubic, c) = rss(&[&ones, &xs, &cubes])?;
+    let k = stats::least_squares(&[&ones, &xs, &cubes], &ts, &all)?[1];
+    let mut mags: Vec<f64> = xs.iter().map(|v| v.abs()).collect();
+    mags.sort_by(f64::total_cmp);
+    let x_max = mags[(mags.len() * 99 / 100).min(mags.len() - 1)];
+    (line > 0.0 && k != 0.0 && x_max > 0.0).then(|| Bend {
+        share: (1.0 - cubic / line).clamp(0.0, 1.0),
+        x_max,
+        change: 3.0 * c[2] * x_max * x_max / k,
+    })
 }
 
 /// Whiteness, cross-correlations and loop orientation of the held-out residual `e` (indexed
@@ -171,6 +226,28 @@ pub(crate) fn diagnose(
             ));
         }
     }
+    // Straight lines for a joint whose stiffness changes with its deflection (the restoring
+    // loop with a config's lever envelope follows a lever; nothing follows a progressive spring).
+    let straight = opts.model == Declared::Linear
+        || (opts.model == Declared::Restoring && opts.envelope == Envelope::Linear);
+    let bent = straight.then(|| bend(&s.x, &p.tau, rows, e)).flatten();
+    if let Some(b) = bent
+        && b.share >= BEND_SHARE
+        && (BEND_CHANGE..=BEND_CHANGE_MAX).contains(&b.change.abs())
+    {
+        structure.push(format!(
+            "it bends with the deflection: an odd cubic takes {:.0} % of it beyond a line, and the joint is {:.0} % {} at ±{:.3} rad than at rest where the model's lines are straight — {}",
+            100.0 * b.share,
+            100.0 * b.change.abs(),
+            if b.change < 0.0 { "softer" } else { "stiffer" },
+            b.x_max,
+            if b.change < 0.0 {
+                "a lever's geometry (the restoring model given the lever by --config follows its curve)"
+            } else {
+                "a progressive spring, or a stop's onset"
+            }
+        ));
+    }
     if opts.model.is_joint() && loop_before < -LOOP_BACKWARDS {
         structure.push(format!(
             "the declared model's residual loops the other way round ({loop_before:+.2}: loading below unloading, it gives energy back) — no passive part does that; it is the torque lagging the deflection{}, or a sign error",
@@ -188,6 +265,42 @@ pub(crate) fn diagnose(
         cross_curves,
         loop_before,
         loop_after,
+        bend: bent,
         structure,
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_softening_spring_seen_through_a_line_bends_by_its_closed_form_and_noise_does_not() {
+        // τ = k·x − c·x³ over a sine's whole cycles: its slope at ±A is k − 3c·A², so the
+        // change toward the ends is −3c·A²/k; what a line leaves of it is all cubic.
+        let (k, c, a) = (2.0, 10.0, 0.2);
+        let n = 4000;
+        let x: Vec<f64> = (0..n)
+            .map(|i| a * (std::f64::consts::TAU * 3.0 * i as f64 / n as f64).sin())
+            .collect();
+        let tau: Vec<f64> = x.iter().map(|x| k * x - c * x * x * x).collect();
+        let rows: Vec<usize> = (0..n).collect();
+        let ones = vec![1.0; n];
+        // A model of straight lines: the secant a line fit gives.
+        let line = stats::least_squares(&[&ones, &x], &tau, &rows).unwrap();
+        let e: Vec<f64> = (0..n).map(|i| tau[i] - line[0] - line[1] * x[i]).collect();
+        let b = bend(&x, &tau, &rows, &e).unwrap();
+        assert!(b.share > 0.999, "{b:?}");
+        assert!(b.x_max > 0.99 * a && b.x_max <= a, "{b:?}");
+        let want = -3.0 * c * b.x_max * b.x_max / k;
+        assert!((b.change - want).abs() < 1e-9, "{b:?} against {want}");
+        // White noise has no cubic in it beyond what chance gives, ~1/n of its squares.
+        let mut u = signals::uniforms(12345);
+        let noise: Vec<f64> = (0..n).map(|_| u() - 0.5).collect();
+        let b = bend(&x, &tau, &rows, &noise).unwrap();
+        assert!(b.share < 0.01, "{b:?}");
+        // Too few rows, or a residual of another length: no answer.
+        assert_eq!(bend(&x, &tau, &rows[..5], &e[..5]), None);
+        assert_eq!(bend(&x, &tau, &rows, &e[..10]), None);
     }
 }
