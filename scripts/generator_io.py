@@ -44,11 +44,12 @@ def motion(kind, r, T, triangle_hz=(0.1, 0.6), chirp_end_hz=(0.8, 2.0), sine_hz=
 
 
 def write_run(path, header, rows):
-    """A run as CSV: `header` (e.g. "t,phi,tau"), then (t, angle, torque) rows."""
+    """A run as CSV: `header` (e.g. "t,phi,tau"), then (t, angle, torque, ...) rows: the time
+    to the microsecond, every other value to ten significant digits."""
     with open(path, "w") as f:
         f.write(header + "\n")
-        for t, a, b in rows:
-            f.write(f"{t:.6f},{a:.9e},{b:.9e}\n")
+        for t, *values in rows:
+            f.write(",".join([f"{t:.6f}"] + [f"{v:.9e}" for v in values]) + "\n")
 
 
 def write_case(out, rng, truth, run):

@@ -49,6 +49,7 @@ phi_pk = lo
 tau_pk = lever(phi_pk, d_a)[2]
 rate = rng.choice([100, 200, 250, 500, 1000])
 JITTER = float(os.environ.get("JITTER", 0.1))
+PIVOT = os.environ.get("PIVOT") == "1"  # a pivot column d [mm], as a rig's recording has
 noise = rng.choice([0.003, 0.01, 0.02]) * tau_pk
 counts = rng.choice([16384, 65536])
 while phi_pk / (2 * math.pi / counts) < 200 and counts < 65536:
@@ -171,8 +172,8 @@ def run(path, r, jump_frac):
         if effect == "slip" and t > t_jump:
             phim += p["s"]
         phim = round(phim / q) * q
-        rows.append((t, phim, tau + r.gauss(0, noise)))
-    write_run(path, "t,phi,tau", rows)
+        rows.append((t, phim, tau + r.gauss(0, noise)) + ((d * 1e3,) if PIVOT else ()))
+    write_run(path, "t,phi,tau" + (",d" if PIVOT else ""), rows)
     return kind
 
 

@@ -8,19 +8,23 @@
 # (scripts/lever-generator.py, `rig identify --model restoring`). DROP=tenth|pause: each
 # case's files as a logger that drops samples or stalls would have written them
 # (scripts/drop-rows.py). JITTER=J: each sample's instant up to J of a step off its slot
-# (default 0.1; under 0.5 keeps the order).
+# (default 0.1; under 0.5 keeps the order). CONFIG=FILE (PLANT=lever): the runs carry the pivot
+# column and `rig identify` is given the rig config FILE, whose lever's envelope it then follows
+# (rig-config/examples/bench.toml is the generator's lever).
 set -euo pipefail
 source "$(dirname "$0")/rig-binary.sh"
 OUT=$1; S=$2; shift 2
 gen=$here/scripts/third-generator.py; model=linear
 [ "${PLANT:-linear}" = link ] && { gen=$here/scripts/link-generator.py; model=link; }
 [ "${PLANT:-linear}" = lever ] && { gen=$here/scripts/lever-generator.py; model=restoring; }
+cfg=()
+[ -n "${CONFIG:-}" ] && { export PIVOT=1; cfg=(--config "$CONFIG"); }
 EFF=${*:-$(python3 "$gen" --effects)}
 for e in $EFF; do for s in $(seq 0 $((S-1))); do
   d=$OUT/$e-$s; python3 "$gen" "$d" "$e" "$s"
   [ -n "${DROP:-}" ] && python3 "$here/scripts/drop-rows.py" "$d" "$d" "$DROP"
   "$rig" identify --model $model --data "$d/fit.csv" --holdout "$d/ho.csv" --report "$d/r.json" \
-    > "$d/log" 2>&1 || { echo "$e-$s: rig identify failed, see $d/log" >&2; continue; }
+    "${cfg[@]}" > "$d/log" 2>&1 || { echo "$e-$s: rig identify failed, see $d/log" >&2; continue; }
   python3 - "$d" <<'PY'
 import json,sys,ast
 d=sys.argv[1]; r=json.load(open(d+'/r.json')); t=ast.literal_eval(open(d+'/truth.txt').read())
