@@ -96,36 +96,59 @@ pub(crate) const BEND_CHANGE: f64 = 0.03;
 /// softer at its ends, or ten times stiffer, is not a smooth bend: a stop, a slip, a fault).
 pub(crate) const BEND_CHANGE_MAX: f64 = 0.9;
 
+/// The cubic coefficient of `e` beside a line in x over the rows of `x` where `keep` holds, and
+/// the share of the residual about the line it takes.
+fn cubic_beside_line(x: &[f64], e: &[f64], keep: impl Fn(usize) -> bool) -> Option<(f64, f64)> {
+    let idx: Vec<usize> = (0..x.len()).filter(|&i| keep(i)).collect();
+    if idx.len() < 10 {
+        return None;
+    }
+    let ones = vec![1.0; x.len()];
+    let cubes: Vec<f64> = x.iter().map(|v| v * v * v).collect();
+    let rss = |cols: &[&[f64]]| -> Option<(f64, Vec<f64>)> {
+        let c = stats::least_squares(cols, e, &idx)?;
+        let fit = stats::combine(cols, &c, e.len());
+        Some((idx.iter().map(|&i| (e[i] - fit[i]).powi(2)).sum(), c))
+    };
+    let (line, _) = rss(&[&ones, x])?;
+    let (cubic, c) = rss(&[&ones, x, &cubes])?;
+    (line > 0.0).then(|| (c[2], (1.0 - cubic / line).clamp(0.0, 1.0)))
+}
+
 /// The bend of the residual `e` (indexed like `rows`) with the deflection `x` (indexed by
 /// row), and the measured torque `tau` (indexed by row) for the slope at rest. What straight
 /// lines leave of a joint whose stiffness changes with its deflection — a lever's geometry
 /// softens it toward the ends of its travel, a progressive spring or a stop's onset stiffens
-/// it — is an odd function of the deflection, to first order c·x³. `None` with under ten
-/// rows, a residual of another length or a degenerate fit.
-pub(crate) fn bend(x: &[f64], tau: &[f64], rows: &[usize], e: &[f64]) -> Option<Bend> {
+/// it — is an odd function of the deflection, to first order c·x³, and the same loading and
+/// unloading. A loop's misfit at its tips is not: it lies where the motion turns, on one
+/// branch. So the bend is read only where the cubics of the loading rows and of the unloading
+/// rows (`dir`, indexed by row: > 0 loading, < 0 unloading) have one sign and are within a
+/// factor of two of each other. `None` with under ten rows either way, a residual of another
+/// length, a degenerate fit or branches that disagree.
+pub(crate) fn bend(x: &[f64], tau: &[f64], dir: &[f64], rows: &[usize], e: &[f64]) -> Option<Bend> {
     if rows.len() < 10 || e.len() != rows.len() {
         return None;
     }
     let xs: Vec<f64> = rows.iter().map(|&i| x[i]).collect();
+    let ds: Vec<f64> = rows.iter().map(|&i| dir[i]).collect();
+    let (up, _) = cubic_beside_line(&xs, e, |i| ds[i] > 0.0)?;
+    let (down, _) = cubic_beside_line(&xs, e, |i| ds[i] < 0.0)?;
+    if up * down <= 0.0 || up.abs().max(down.abs()) > 2.0 * up.abs().min(down.abs()) {
+        return None;
+    }
+    let (c, share) = cubic_beside_line(&xs, e, |_| true)?;
     let ts: Vec<f64> = rows.iter().map(|&i| tau[i]).collect();
     let ones = vec![1.0; xs.len()];
     let cubes: Vec<f64> = xs.iter().map(|v| v * v * v).collect();
     let all: Vec<usize> = (0..xs.len()).collect();
-    let rss = |cols: &[&[f64]]| -> Option<(f64, Vec<f64>)> {
-        let c = stats::least_squares(cols, e, &all)?;
-        let fit = stats::combine(cols, &c, e.len());
-        Some((e.iter().zip(&fit).map(|(y, f)| (y - f).powi(2)).sum(), c))
-    };
-    let (line, _) = rss(&[&ones, &xs])?;
-    let (cubic, c) = rss(&[&ones, &xs, &cubes])?;
     let k = stats::least_squares(&[&ones, &xs, &cubes], &ts, &all)?[1];
     let mut mags: Vec<f64> = xs.iter().map(|v| v.abs()).collect();
     mags.sort_by(f64::total_cmp);
     let x_max = mags[(mags.len() * 99 / 100).min(mags.len() - 1)];
-    (line > 0.0 && k != 0.0 && x_max > 0.0).then(|| Bend {
-        share: (1.0 - cubic / line).clamp(0.0, 1.0),
+    (k != 0.0 && x_max > 0.0).then(|| Bend {
+        share,
         x_max,
-        change: 3.0 * c[2] * x_max * x_max / k,
+        change: 3.0 * c * x_max * x_max / k,
     })
 }
 
@@ -230,7 +253,9 @@ pub(crate) fn diagnose(
     // loop with a config's lever envelope follows a lever; nothing follows a progressive spring).
     let straight = opts.model == Declared::Linear
         || (opts.model == Declared::Restoring && opts.envelope == Envelope::Linear);
-    let bent = straight.then(|| bend(&s.x, &p.tau, rows, e)).flatten();
+    let bent = straight
+        .then(|| bend(&s.x, &p.tau, &s.dir, rows, e))
+        .flatten();
     if let Some(b) = bent
         && b.share >= BEND_SHARE
         && (BEND_CHANGE..=BEND_CHANGE_MAX).contains(&b.change.abs())
@@ -289,7 +314,17 @@ mod tests {
         // A model of straight lines: the secant a line fit gives.
         let line = stats::least_squares(&[&ones, &x], &tau, &rows).unwrap();
         let e: Vec<f64> = (0..n).map(|i| tau[i] - line[0] - line[1] * x[i]).collect();
-        let b = bend(&x, &tau, &rows, &e).unwrap();
+        // Loading where x rises, unloading where it falls: the same bend on both.
+        let dir: Vec<f64> = (0..n)
+            .map(|i| {
+                if i + 1 < n && x[i + 1] < x[i] {
+                    -1.0
+                } else {
+                    1.0
+                }
+            })
+            .collect();
+        let b = bend(&x, &tau, &dir, &rows, &e).unwrap();
         assert!(b.share > 0.999, "{b:?}");
         assert!(b.x_max > 0.99 * a && b.x_max <= a, "{b:?}");
         let want = -3.0 * c * b.x_max * b.x_max / k;
@@ -297,10 +332,17 @@ mod tests {
         // White noise has no cubic in it beyond what chance gives, ~1/n of its squares.
         let mut u = signals::uniforms(12345);
         let noise: Vec<f64> = (0..n).map(|_| u() - 0.5).collect();
-        let b = bend(&x, &tau, &rows, &noise).unwrap();
-        assert!(b.share < 0.01, "{b:?}");
+        // (its branches' cubics may disagree: then no bend at all)
+        if let Some(b) = bend(&x, &tau, &dir, &rows, &noise) {
+            assert!(b.share < 0.01, "{b:?}");
+        }
+        // A misfit on one branch only (a loop's tips, where the motion turns) is no bend.
+        let tips: Vec<f64> = (0..n)
+            .map(|i| if dir[i] > 0.0 { e[i] } else { 0.0 })
+            .collect();
+        assert_eq!(bend(&x, &tau, &dir, &rows, &tips), None);
         // Too few rows, or a residual of another length: no answer.
-        assert_eq!(bend(&x, &tau, &rows[..5], &e[..5]), None);
-        assert_eq!(bend(&x, &tau, &rows, &e[..10]), None);
+        assert_eq!(bend(&x, &tau, &dir, &rows[..5], &e[..5]), None);
+        assert_eq!(bend(&x, &tau, &dir, &rows, &e[..10]), None);
     }
 }
