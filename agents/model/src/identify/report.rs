@@ -93,7 +93,7 @@ pub(crate) const BEND_SHARE: f64 = 0.25;
 /// ... and the stiffness changes toward the ends by this much ...
 pub(crate) const BEND_CHANGE: f64 = 0.03;
 /// ... but not by this much: beyond it the cubic's first-order reading fails (a joint 90 %
-/// softer at its ends, or ten times stiffer, is not a smooth bend: a stop, a slip, a fault).
+/// softer or stiffer at its ends is not a smooth bend: a stop, a slip, a fault).
 pub(crate) const BEND_CHANGE_MAX: f64 = 0.9;
 
 /// The cubic coefficient of `e` beside a line in x over the rows of `x` where `keep` holds, and
