@@ -300,10 +300,7 @@ fn fit_group(
         runs: runs.to_vec(),
         dead_band: opts.dead_band,
         envelope: opts.envelope,
-        centre: runs
-            .iter()
-            .map(|r| r.iter().map(|s| opts.envelope.s(s.phi, s.d)).collect())
-            .collect(),
+        centre: centre_lines(opts.envelope, runs),
         tau,
         theta: DVector::zeros(4 + flat.len()),
         columns: flat,
@@ -439,6 +436,14 @@ fn params_of(theta: &DVector<f64>) -> RestoringParams {
         a_s: theta[2].exp(),
         n: theta[3].exp(),
     }
+}
+
+/// The envelope's centre line per unit of k, s(φ, d), at every sample of each run: what
+/// [`GroupProblem::predict`] feeds every replay of a fit instead of evaluating it each time.
+fn centre_lines(envelope: Envelope, runs: &[&[FitSample]]) -> Vec<Vec<f64>> {
+    runs.iter()
+        .map(|r| r.iter().map(|s| envelope.s(s.phi, s.d)).collect())
+        .collect()
 }
 
 /// The least-squares problem of one group: θ = ln(k, h, A_s, n).
@@ -783,10 +788,7 @@ mod tests {
             runs: runs.clone(),
             dead_band: AS5048A_COUNT_RAD,
             envelope,
-            centre: runs
-                .iter()
-                .map(|r| r.iter().map(|s| envelope.s(s.phi, s.d)).collect())
-                .collect(),
+            centre: centre_lines(envelope, &runs),
             tau: DVector::zeros(column.len()),
             columns: vec![column.clone()],
             theta: DVector::zeros(5),
