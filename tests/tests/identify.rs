@@ -148,6 +148,37 @@ fn adds_nothing(v: &Value) {
 // Declared: paper B's restoring-torque model; plant: the lever with Bouc-Wen hysteresis.
 
 #[test]
+fn a_lever_swung_far_without_its_geometry_gets_lines_that_soften_as_the_lever_does() {
+    // ±0.15 rad at the 9 mm pivot, no effect: paper B's straight lines cannot follow the
+    // lever's curve. Without a config the lines bent toward the ends are kept, about as much
+    // softer at the fit's largest deflection as the lever's closed form k(φ)/k(0) says, and
+    // the report says so; `--straight` keeps paper B's lines and only notes the bend.
+    let csv = lever_bench("r-far", true, 0.15, "");
+    let v = identify(&csv, &[]);
+    assert_eq!(v["envelope"], "softening", "{v:#}");
+    let s = &v["softening"];
+    let x = s["x_max_rad"].as_f64().unwrap();
+    let softer = s["softer_at_x_max"].as_f64().unwrap();
+    let vsa = rig_model::lever::LeverVsa::paper_b();
+    let want = 1.0 - vsa.stiffness_exact(x, 0.009) / vsa.stiffness_at_rest(0.009);
+    assert!(
+        (softer / want - 1.0).abs() < 0.25,
+        "{softer} softer at ±{x} rad against the lever's {want}"
+    );
+    let md = std::fs::read_to_string(csv.with_extension("md")).unwrap();
+    assert!(md.contains("declared loop's lines bent"), "{md}");
+    let straight = identify(&csv, &["--straight"]);
+    assert_eq!(straight["envelope"], "linear");
+    assert!(straight["softening"].is_null());
+    assert!(
+        rmse(&straight, "after") > 1.3 * rmse(&v, "after"),
+        "straight {} against bent {}",
+        rmse(&straight, "after"),
+        rmse(&v, "after")
+    );
+}
+
+#[test]
 fn restoring_model_on_clean_data_adds_nothing() {
     let v = identify(&lever_bench("r-clean", true, 0.06, ""), &[]);
     adds_nothing(&v);
@@ -431,8 +462,15 @@ fn with_a_config_the_restoring_loop_follows_the_levers_curve_and_holds_its_geome
         !o.status.success() && err.contains("--joint j9") && err.contains("j1"),
         "{err}"
     );
-    // Without the config: paper B's straight lines, whose k is a secant of the stroke.
-    let v = identify(&lever_bench("r-geo2", false, 0.2, ""), &[]);
+    // Without the config: lines bent toward the ends (`softening`), whose k is the stiffness
+    // at rest again (2.734, 0.8 % off); kept straight (`--straight`, paper B's lines), k is a
+    // secant of the stroke.
+    let csv = lever_bench("r-geo2", false, 0.2, "");
+    let v = identify(&csv, &[]);
+    assert_eq!(v["envelope"], "softening", "{v}");
+    let k = v["base"]["after"]["stiffness_nm_per_rad"].as_f64().unwrap();
+    assert!((k / 2.7114 - 1.0).abs() < 0.02, "k {k}");
+    let v = identify(&csv, &["--straight"]);
     assert_eq!(v["envelope"], "linear", "{v}");
     let k = v["base"]["after"]["stiffness_nm_per_rad"].as_f64().unwrap();
     assert!((k / 2.7114 - 1.0).abs() > 0.05, "k {k}");

@@ -37,6 +37,10 @@ pub enum Envelope {
     Linear,
     /// The lever's static curve, s(φ, d) = G(φ, d)·α(φ, d) / G(0, d)² (MODEL.md §1).
     Lever(LeverVsa),
+    /// A joint that softens toward its ends, its geometry not given: s(φ) = φ/√(1 + c·φ²),
+    /// c ≥ 0 [1/rad²], slope (1 + c·φ²)^(−3/2). Paper B's lever at a 9 mm pivot over
+    /// ±0.2 rad is this curve at c ≈ 13 to 3 % of its secant.
+    Softening(f64),
 }
 
 impl Envelope {
@@ -46,6 +50,7 @@ impl Envelope {
         match self {
             Self::Linear => phi,
             Self::Lever(v) => v.torque(phi, d) / v.stiffness_at_rest(d),
+            Self::Softening(c) => phi / (1.0 + c * phi * phi).sqrt(),
         }
     }
 
@@ -55,6 +60,7 @@ impl Envelope {
         match self {
             Self::Linear => 1.0,
             Self::Lever(v) => v.stiffness_exact(phi, d) / v.stiffness_at_rest(d),
+            Self::Softening(c) => (1.0 + c * phi * phi).powf(-1.5),
         }
     }
 }

@@ -20,6 +20,7 @@
 //! `after` with the effects added. On data with nothing missing it adds nothing.
 
 pub mod effects;
+mod envelope;
 mod model;
 mod report;
 pub mod rows;
@@ -31,6 +32,7 @@ pub mod stats;
 use crate::hysteresis::Envelope;
 use crate::lever::LeverVsa;
 pub use effects::{Effect, Place, Shaped};
+pub use envelope::Softening;
 use model::{Transform, base_params, fit, fit_restoring_on};
 pub use report::Bend;
 pub use rows::Tare;
@@ -101,6 +103,11 @@ pub struct Options {
     /// fitted with (`rig calibrate` writes the lever's), so that what is found is found beside
     /// the loop the estimator will run. Straight lines (paper B) by default.
     pub envelope: Envelope,
+    /// Where the envelope is straight (the restoring model without a lever's geometry), also
+    /// try lines that soften toward the ends, as a lever's do ([`Softening`]): kept where they
+    /// pay on validation and held out. Not where `lever` is given (its own curve is then the
+    /// candidate `geometric_stiffness`, or the envelope).
+    pub soften: bool,
     /// Direction dead band [rad]; `None`: three quantisation steps of the angle.
     pub dead_band: Option<f64>,
     /// Time blocks per run for interleaving.
@@ -133,6 +140,7 @@ impl Default for Options {
             model: Declared::Restoring,
             lever: None,
             envelope: Envelope::Linear,
+            soften: true,
             dead_band: None,
             blocks: 12,
             min_gain: 0.05,
@@ -301,6 +309,9 @@ pub struct Identified {
     pub tare: Vec<Tare>,
     /// Why nothing was tared, when the tare was on but could not treat every run alike.
     pub tare_note: Option<String>,
+    /// The declared loop's lines bent toward the ends, where no lever's geometry was given and
+    /// straight lines did not fit ([`Options::soften`]); `None`: as declared.
+    pub softening: Option<Softening>,
     /// The declared model's own parameters, before and after the effects were added.
     pub base_before: Vec<(&'static str, f64)>,
     pub base_after: Vec<(&'static str, f64)>,
@@ -605,6 +616,26 @@ pub fn identify(
     }
     p.restoring = curve;
     let after = states::settle(&mut p, &chosen, &rows)?;
+    // Straight lines that a lever swung far bends away from: where lines that soften toward
+    // the ends pay beside what was found, the whole identification again with them (a choice
+    // of the declared model: the effects are chosen afresh beside it), reported against the
+    // declared model as given. With the lever known, `geometric_stiffness` is its own curve.
+    if opts.soften
+        && opts.model == Declared::Restoring
+        && opts.lever.is_none()
+        && let Some(bend) = envelope::soften_beside(&p, &chosen, &rows, opts, &after)?
+    {
+        let bent = Options {
+            envelope: Envelope::Softening(bend.c),
+            soften: false,
+            ..opts.clone()
+        };
+        let mut res = identify(fit_runs, holdout, &bent, progress)?;
+        res.before = Errors::of(&e_before);
+        res.base_before = base_before;
+        res.softening = Some(bend);
+        return Ok(res);
+    }
     let sig = p.signals(Transform::of(&chosen));
     if let Some(states) = p.states.as_ref().filter(|_| p.loop_rests.is_some()) {
         // What the rule took as each run's zeros, and the state it read at rest.
@@ -737,6 +768,7 @@ pub fn identify(
         after: Errors::of(&e_after),
         tare,
         tare_note,
+        softening: None,
         base_before,
         base_after: base_params(opts.model, &base_coefs, p.restoring.as_ref()),
         effects,

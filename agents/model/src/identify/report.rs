@@ -250,9 +250,10 @@ pub(crate) fn diagnose(
         }
     }
     // Straight lines for a joint whose stiffness changes with its deflection (the restoring
-    // loop with a config's lever envelope follows a lever; nothing follows a progressive spring).
+    // loop with a config's lever envelope, or softened by identify, follows a lever; nothing
+    // follows a progressive spring).
     let straight = opts.model == Declared::Linear
-        || (opts.model == Declared::Restoring && opts.envelope == Envelope::Linear);
+        || (opts.model == Declared::Restoring && p.envelope == Envelope::Linear);
     let bent = straight
         .then(|| bend(&s.x, &p.tau, &s.dir, rows, e))
         .flatten();

@@ -1039,7 +1039,7 @@ fn profile_coefficient(
 /// The least of `f` on [lo, hi] by golden sections (ten steps), or `start` (a point already
 /// evaluated) where nothing beats it. `f` gives what it computed and the error there, `None`
 /// where it cannot be evaluated (taken as no better).
-fn golden_section<T: Clone>(
+pub(crate) fn golden_section<T: Clone>(
     (mut a, mut b): (f64, f64),
     start: (f64, (T, f64)),
     mut f: impl FnMut(f64) -> Option<(T, f64)>,
@@ -1248,7 +1248,7 @@ fn validation_error(q: &Problem, trial: &[Shaped], rows: &Rows) -> Result<f64, I
 }
 
 /// The transform of `chosen`, with the declared model's slope wherever offsets may want it.
-fn sig_transform(p: &Problem, chosen: &[Shaped]) -> Transform {
+pub(crate) fn sig_transform(p: &Problem, chosen: &[Shaped]) -> Transform {
     Transform {
         slope: p.model == Declared::Restoring,
         ..Transform::of(chosen)
@@ -1873,7 +1873,7 @@ pub(crate) fn quiet_window(p: &Problem, inertia: f64, torque_noise: f64, undone:
 /// The smallest gain of the held-out fit an effect must bring: the likelihood ratio on the
 /// held-out residual's effective samples above χ²₁'s 99 % point. Less is what noise and the
 /// rates' estimation give a fit that learned nothing.
-const HELDOUT_LR: f64 = 6.63;
+pub(crate) const HELDOUT_LR: f64 = 6.63;
 
 /// The same for a jump whose instant each held-out run reads for itself
 /// ([`super::states::settle`]): searching the instant of a step of fixed size, the gain on pure
