@@ -908,7 +908,18 @@ fn a_recording_of_the_bench_is_identified_and_its_undeclared_offset_named() {
         _ => panic!("an offset with neither a torque nor an encoder size: {p}"),
     };
     assert!((level - 0.02).abs() < 0.005, "{p}");
-    assert!(v["after"]["rmse"].as_f64().unwrap() < 0.5 * v["before"]["rmse"].as_f64().unwrap());
+    // Held out, the offset takes the identify report down to the sensor's 3 mN·m noise. The
+    // declared loop fitted with the offset in the data may hold part of it (the loop's least
+    // squares has many minima): "before" was 21.7 mN·m in one run and 4.6 mN·m in two full
+    // CI runs, so it is the floor reached that is asserted, not a ratio to that.
+    let (held_before, held_after) = (
+        v["before"]["rmse"].as_f64().unwrap(),
+        v["after"]["rmse"].as_f64().unwrap(),
+    );
+    assert!(
+        held_after < held_before && held_after < 0.004,
+        "held out {held_before} -> {held_after} N·m"
+    );
     println!("live residual RMS: {before:.4} N·m as declared, {after:.4} N·m with --apply");
     assert!(after <= 0.5 * before, "before {before}, after {after}");
     assert!(
