@@ -14,9 +14,9 @@
 //! [`super::select::with_heldout_veto`]).
 
 use super::effects::Shaped;
-use super::model::{Fitted, fit, refit_restoring};
+use super::model::{Fitted, refit_restoring};
 use super::rows::Problem;
-use super::select::{HELDOUT_LR, Rows, golden_section, rss_and_neff, sig_transform};
+use super::select::{HELDOUT_LR, Rows, golden_section, rss_and_neff, validation_error};
 use super::states::settle;
 use super::{IdentifyError, Options};
 use crate::hysteresis::Envelope;
@@ -80,10 +80,7 @@ pub(crate) fn soften_beside(
         return Ok(None);
     }
     let validation = |env: Envelope| -> Result<f64, IdentifyError> {
-        let q = with_envelope(p, env, chosen, &rows.train)?;
-        let sig = q.signals(sig_transform(&q, chosen));
-        let f = fit(&sig, chosen, &q.tau, &rows.train).ok_or(IdentifyError::Solve)?;
-        Ok(f.error_on(&q.tau, &rows.validate))
+        validation_error(&with_envelope(p, env, chosen, &rows.train)?, chosen, rows)
     };
     let straight = validation(Envelope::Linear)?;
     let mut tried = Vec::with_capacity(SOFTER_AT_EDGE.len());

@@ -1236,7 +1236,11 @@ fn loop_fit_error(q: &Problem, trial: &[Shaped], tr: Transform, rows: &[usize]) 
 }
 
 /// The validation RMSE of `trial` fitted on the train blocks.
-fn validation_error(q: &Problem, trial: &[Shaped], rows: &Rows) -> Result<f64, IdentifyError> {
+pub(crate) fn validation_error(
+    q: &Problem,
+    trial: &[Shaped],
+    rows: &Rows,
+) -> Result<f64, IdentifyError> {
     Ok(fit(
         &q.signals(sig_transform(q, trial)),
         trial,
@@ -1248,7 +1252,7 @@ fn validation_error(q: &Problem, trial: &[Shaped], rows: &Rows) -> Result<f64, I
 }
 
 /// The transform of `chosen`, with the declared model's slope wherever offsets may want it.
-pub(crate) fn sig_transform(p: &Problem, chosen: &[Shaped]) -> Transform {
+fn sig_transform(p: &Problem, chosen: &[Shaped]) -> Transform {
     Transform {
         slope: p.model == Declared::Restoring,
         ..Transform::of(chosen)
