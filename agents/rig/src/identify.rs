@@ -31,8 +31,10 @@ pub enum ModelArg {
 /// hysteresis, coulomb_friction, viscous_friction, backlash, hard_stop, geometric_stiffness,
 /// sensor_delay, offset, stiffness_drift, gravity, periodic_ripple — adding one at a time the
 /// effect that lowers the error most on validation blocks of the fit data, while it lowers it
-/// by at least --min-gain. Every "before" and "after" figure is on held-out data: the
-/// --holdout files, or else every fourth time block of each --data file (a quarter).
+/// by at least --min-gain, and keeping it where the held-out data agrees (by more than noise
+/// explains; beside another effect by --min-gain too). Every "before" and "after" figure is on
+/// held-out data: the --holdout files, or else every fourth time block of each --data file (a
+/// quarter).
 ///
 /// Writes OUT.json, OUT.md (a summary) and OUT-fit.png, OUT-residual.png beside it.
 ///
@@ -59,9 +61,10 @@ pub struct Args {
     /// Joint of an MCAP recording to identify (default: the first)
     #[arg(long, value_name = "NAME")]
     joint: Option<String>,
-    /// Smallest relative drop of the validation RMSE that adds an effect (an effect must also
-    /// pass the information criterion on the residual's effective samples, and then lower the
-    /// held-out error by more than noise explains)
+    /// Smallest relative drop of the validation RMSE that adds an effect, and of the held-out
+    /// RMSE that keeps one beside another (an effect must also pass the information criterion
+    /// on the residual's effective samples, and lower the held-out error by more than noise
+    /// explains)
     #[arg(long, default_value_t = 0.05, value_name = "FRACTION")]
     min_gain: f64,
     /// Do not tare: by default each file's torque and deflection zeros are taken from the rest
