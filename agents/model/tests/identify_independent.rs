@@ -89,6 +89,8 @@ fn options_of(c: &Case) -> Options {
         rate_window: std::env::var("RATE_WINDOW")
             .ok()
             .and_then(|v| v.parse().ok()),
+        // `STRAIGHT=1`: the restoring loop's lines kept straight (`rig identify --straight`).
+        soften: std::env::var_os("STRAIGHT").is_none(),
         ..Options::default()
     }
 }
