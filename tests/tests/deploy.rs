@@ -12,7 +12,7 @@
 #![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)]
 
 mod common;
-use common::{bin, config, test_dir};
+use common::{bin, config, serial, test_dir};
 
 use std::collections::BTreeMap;
 use std::path::Path;
@@ -237,6 +237,7 @@ fn export_csv(recording: &Path, dir: &Path) -> std::path::PathBuf {
 #[test]
 fn three_machines_in_network_namespaces_run_the_plan_over_mutual_tls_and_estimate_the_force_across_them()
  {
+    let _one_at_a_time = serial();
     let Some((_namespaces, ns)) = namespaces_or_say_why(std::process::id() % 100_000) else {
         return;
     };
@@ -387,6 +388,9 @@ fn link(ns: &[String; 3], k: u32, tag: u32, up: bool) {
 fn a_board_computer_cut_off_for_3_s_and_for_15_s_is_estimated_again_within_1_s_of_its_link() {
     // Chain 2 (j3, j4) loses its link to the host twice: 3 s (under the 10 s lease: the
     // session survives) and 15 s (over it: the session closes and is made again).
+    // Alone: with the other plan's six processes beside it on a 2-core machine the estimator
+    // falls behind 1 kHz, which is not what this test is about.
+    let _one_at_a_time = serial();
     let tag = std::process::id() % 100_000 + 1;
     let Some((_namespaces, ns)) = namespaces_or_say_why(tag) else {
         return;
@@ -424,6 +428,22 @@ fn a_board_computer_cut_off_for_3_s_and_for_15_s_is_estimated_again_within_1_s_o
     let csv = export_csv(&recording, &dir);
     let ee = csv_columns(&csv.join("rig.parallel.estimate.ee.csv"));
     let times: Vec<u64> = ee["t_ns"].iter().filter_map(|t| t.parse().ok()).collect();
+    // The rate this machine keeps while every link is up (from 0.5 s after the first estimate
+    // to 7.5 s, before the first cut): the recovery is held to it, not to a nominal 1 kHz a
+    // loaded machine may not keep at all.
+    let to = start + 7_500_000_000;
+    let from = times.first().map_or(to, |t| t + 500_000_000);
+    assert!(
+        from + 2_000_000_000 < to,
+        "the plan's first estimate came too late to measure"
+    );
+    let before = times.iter().filter(|&&t| t > from && t < to).count();
+    let rate_hz = before as f64 / ((to - from) as f64 * 1e-9);
+    eprintln!("before the first cut: {rate_hz:.0} estimates a second");
+    assert!(
+        rate_hz > 500.0,
+        "the plan estimates at {rate_hz} Hz with every link up"
+    );
     for (k, back) in returned.iter().enumerate() {
         // The first end-effector estimate after the link returned; none may be missing for
         // long after it.
@@ -442,10 +462,11 @@ fn a_board_computer_cut_off_for_3_s_and_for_15_s_is_estimated_again_within_1_s_o
             (until - first) as f64 * 1e-9
         );
         assert!(recovery_s < 1.0, "partition {}: {recovery_s} s", k + 1);
-        // At 1 kHz, steady again: at least 90 % of the ticks.
+        // Steady again: at least 90 % of the rate kept before the cut.
+        let want = 0.9 * rate_hz * (until - first) as f64 * 1e-9;
         assert!(
-            after as f64 > 0.9 * (until - first) as f64 * 1e-6,
-            "partition {}: {after} estimates",
+            after as f64 > want,
+            "partition {}: {after} estimates, under 90 % of the {rate_hz:.0} Hz kept before",
             k + 1
         );
     }

@@ -250,7 +250,14 @@ fn a_load_cell_and_the_motors_current_give_the_bench_its_torque_references_on_th
         );
         common::wait_alive_on(&z, &[common::alive_in("bench", "estimator", "0")]).await;
         let mut agent = agent_on(&vb, &cfg_path, "j1", &hub);
-        tokio::time::sleep(Duration::from_secs(6)).await;
+        // Until 3000 samples and 3600 estimates are in (about 4 s of the joint's 1 kHz once it
+        // runs), however long a loaded machine takes to start it; 60 s at most.
+        let deadline = Instant::now() + Duration::from_secs(60);
+        while Instant::now() < deadline
+            && (samples.lock().unwrap().len() <= 3000 || residuals.lock().unwrap().len() <= 3600)
+        {
+            tokio::time::sleep(Duration::from_millis(100)).await;
+        }
         let _ = agent.0.kill();
         let _ = agent.0.wait();
         let got = samples.lock().unwrap().clone();
