@@ -430,7 +430,7 @@ fn third_generator(effect: &str, seed: u32) -> (Value, String) {
     (v, std::fs::read_to_string(dir.join("truth.txt")).unwrap())
 }
 
-/// A number of the generator's truth: the first `"key": value` in it.
+/// A number of the generator's truth (a Python dict as `str` prints it): the first `'key': value`.
 fn truth_value(truth: &str, key: &str) -> f64 {
     let at = truth
         .find(&format!("'{key}': "))
