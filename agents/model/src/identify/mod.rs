@@ -625,7 +625,8 @@ pub fn identify(
     // not found again and it ends worse held out than the straight lines did, it is refused.
     // (The in-tree lever with a stiffness step of 24 % part-way, 1 kHz ramps and holds: lines
     // bent beside the step, and then the step, half taken up by the bend, was left to a slow
-    // residual the criterion refused: 12.6× its clean twin's floor held out; the straight lines' report, 1.18×.)
+    // residual the criterion refused: 12.6× its clean twin's floor held out; the straight
+    // lines' report, 1.18×.)
     if opts.soften
         && opts.model == Declared::Restoring
         && opts.lever.is_none()
