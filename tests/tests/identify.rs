@@ -453,6 +453,7 @@ fn a_companion_that_another_motion_barely_shows_is_refused_and_the_effect_named_
         ("hysteresis", 7, "hysteresis", "coulomb_friction"),
     ] {
         let (v, truth) = third_generator(effect, seed);
+        finds(&v, name);
         assert_eq!(names(&v), [name], "{effect} seed {seed}: {v:#}");
         let refused = v["refused"].as_array().unwrap();
         assert!(
@@ -460,12 +461,6 @@ fn a_companion_that_another_motion_barely_shows_is_refused_and_the_effect_named_
                 |r| r["name"] == companion && r["why"].as_str().unwrap().contains("--min-gain")
             ),
             "{effect} seed {seed}: {companion} not refused as immaterial: {refused:#?}"
-        );
-        assert!(
-            rmse(&v, "after") <= 0.5 * rmse(&v, "before"),
-            "{effect} seed {seed}: {} → {}",
-            rmse(&v, "before"),
-            rmse(&v, "after")
         );
         if effect == "stop" {
             // The onset within two counts of the 16384-count encoder (0.77 mrad).
