@@ -429,6 +429,8 @@ fn linear_start_beside(
         .then(|| x.iter().copied().collect())
 }
 
+/// The loop at θ, its h held to what its transitions can close ([`RestoringParams::meeting`]):
+/// past that edge the loop runs parallel to its lines and h no longer is its half-height.
 fn params_of(theta: &DVector<f64>) -> RestoringParams {
     RestoringParams {
         k: theta[0].exp(),
@@ -436,6 +438,7 @@ fn params_of(theta: &DVector<f64>) -> RestoringParams {
         a_s: theta[2].exp(),
         n: theta[3].exp(),
     }
+    .meeting()
 }
 
 /// The envelope's centre line per unit of k, s(φ, d), at every sample of each run: what
@@ -870,7 +873,8 @@ mod tests {
         // 100 Hz, 23 % of its torque through a Bouc-Wen element with a sharp yield (n = 3,
         // z_max a sixth of the swing; MODEL.md §2): the loop's half-height is
         // 0.232·k0·z_max. From the grid's best start alone Levenberg–Marquardt ends in a loop
-        // two thirds as tall; from its best four, at the plant's.
+        // four fifths as tall, its RMSE 1.47 times; from its best four, at the plant's. (Two
+        // thirds as tall before h was held to the gap its transitions can close.)
         let z_max: f64 = 0.0213;
         let bw = BoucWenParams {
             k: 1.0,
@@ -909,7 +913,7 @@ mod tests {
             four.params.h
         );
         assert!(
-            one.params.h < 0.7 * half_height && one.rmse > 1.5 * four.rmse,
+            one.params.h < 0.85 * half_height && one.rmse > 1.3 * four.rmse,
             "one start: h {}, rmse {} against {}",
             one.params.h,
             one.rmse,

@@ -16,6 +16,18 @@
 //! never from a differentiated velocity. The four parameters (k, h, A_s, n) depend on the
 //! pivot position d through a [`RestoringCurve`].
 //!
+//! **A transition that never meets its line.** With n < 1 the power curve is steepest at its
+//! vertex and flattens; if its slope falls to the line's before it has closed the gap, it
+//! never meets the line, and read literally it would run on, ever flatter, away from the loop
+//! for the rest of the swing. Which of the two happens turns on a hair's breadth of the
+//! parameters (straight lines: the curve closes at most k·u*·(1/n − 1) of the gap, u* =
+//! (A_s·n/k)^(1/(1−n))), so a fit near that edge predicted a held-out swing 60 mN·m off on one
+//! side of it and within the noise on the other. Here such a transition stops at its closest
+//! approach, the point where its slope equals the line's, and from there runs parallel to the
+//! line at that distance until the next reversal: the same where the curve meets the line,
+//! continuous in the parameters where it does not. A fit holds h to the gap its transitions can
+//! close ([`RestoringParams::meeting`]), so that h stays the loop's half-height.
+//!
 //! **The envelope's shape.** Paper B draws the envelopes as straight lines, `k·φ ± h`. A lever
 //! joint's spring torque is not straight in φ: τ = G(φ)·k_α·α(φ) bends (MODEL.md §1), and at
 //! the stiff end of the travel its slope at 0.05 rad is half its slope at rest. A line fitted
@@ -83,6 +95,35 @@ pub struct RestoringParams {
 }
 
 impl RestoringParams {
+    /// The most of the gap between the lines that a transition can close, against straight
+    /// lines of slope k: unbounded for n ≥ 1 (n = 1: while A_s > k); for n < 1 the curve's
+    /// excess A_s·u^n − k·u over the line is largest at u* = (A_s·n/k)^(1/(1−n)), where the
+    /// slopes match, and is k·u*·(1/n − 1) there [N·m].
+    pub fn closable_gap(&self) -> f64 {
+        if self.n > 1.0 || (self.n == 1.0 && self.a_s > self.k) {
+            return f64::INFINITY;
+        }
+        if self.n == 1.0 {
+            return 0.0;
+        }
+        let u_star = ((self.a_s * self.n / self.k).ln() / (1.0 - self.n)).exp();
+        self.k * u_star * (1.0 / self.n - 1.0)
+    }
+
+    /// The same loop with h at most half the [closable gap](Self::closable_gap): one whose
+    /// transitions reach the opposite line after a full swing, as paper B's loop does, so that
+    /// h is the loop's half-height. (Past that edge the model runs parallel to the line, see
+    /// the module docs, and a fit could trade h against A_s and n with the loop unchanged.)
+    /// Where a lever's lines soften away from rest their slope is below k and the curve meets
+    /// them sooner.
+    #[must_use]
+    pub fn meeting(self) -> Self {
+        Self {
+            h: self.h.min(0.5 * self.closable_gap()),
+            ..self
+        }
+    }
+
     /// Whether every value is finite, k, A_s, n positive and h non-negative.
     pub fn is_valid(&self) -> bool {
         [self.k, self.h, self.a_s, self.n]
@@ -284,6 +325,9 @@ pub enum Segment {
     Transition,
     /// The envelope line of the current direction.
     Line,
+    /// Parallel to the envelope line, at the closest approach of a transition that never met
+    /// it (n < 1; module docs).
+    Parallel,
 }
 
 /// The restoring-torque estimator of one joint: feed (φ, d), get τ̂.
@@ -296,6 +340,9 @@ pub struct RestoringTorqueModel {
     vertex: (f64, f64),
     tau_at_extreme: f64,
     tau: f64,
+    /// How far the current transition is from its line, at the last new extreme [N·m] (in
+    /// [`Segment::Parallel`], the distance kept).
+    gap: f64,
     /// The parameters at the last pivot position seen.
     params_at: Option<(f64, RestoringParams)>,
     /// The last deflection fed [rad].
@@ -313,6 +360,7 @@ impl RestoringTorqueModel {
             vertex: (0.0, 0.0),
             tau_at_extreme: 0.0,
             tau: 0.0,
+            gap: f64::INFINITY,
             params_at: None,
             phi: 0.0,
         }
@@ -393,6 +441,7 @@ impl RestoringTorqueModel {
             self.detector = Some(ReversalDetector::new(self.dead_band, phi));
             self.segment = Segment::Transition;
             self.vertex = (phi, p.k * s);
+            self.gap = f64::INFINITY;
             self.tau = self.vertex.1;
             self.tau_at_extreme = self.tau;
             return self.tau;
@@ -401,18 +450,26 @@ impl RestoringTorqueModel {
         if let Some(rev) = reversal {
             self.vertex = (rev.phi, self.tau_at_extreme);
             self.segment = Segment::Transition;
+            self.gap = f64::INFINITY;
         }
         let direction = det.direction();
         let centre = p.k * s;
-        self.tau = self.evaluate(phi, centre, direction, &p);
+        self.tau = self.evaluate(phi, centre, (direction, new_extreme), &p);
         if new_extreme {
             self.tau_at_extreme = self.tau;
         }
         self.tau
     }
 
-    /// The torque at `phi`, given the centre line's torque there, `centre` = k·s(φ, d).
-    fn evaluate(&mut self, phi: f64, centre: f64, direction: i8, p: &RestoringParams) -> f64 {
+    /// The torque at `phi`, given the centre line's torque there, `centre` = k·s(φ, d), the
+    /// direction and whether `phi` is a new extreme of it.
+    fn evaluate(
+        &mut self,
+        phi: f64,
+        centre: f64,
+        (direction, new_extreme): (i8, bool),
+        p: &RestoringParams,
+    ) -> f64 {
         if direction == 0 {
             // Inside the first dead band: on the centre line, where the virgin state started.
             return centre;
@@ -422,13 +479,24 @@ impl RestoringTorqueModel {
         let line = centre + s * p.h;
         match self.segment {
             Segment::Line => line,
+            Segment::Parallel => line - s * self.gap,
             Segment::Transition => {
                 let u = (s * (phi - a)).max(0.0);
                 let curve = b + s * p.a_s * u.powf(p.n);
-                if s * (curve - line) >= 0.0 {
+                let gap = s * (line - curve);
+                if gap <= 0.0 {
                     self.segment = Segment::Line;
                     line
+                } else if new_extreme && p.n < 1.0 && gap > self.gap {
+                    // Further along, and further from the line than at the last extreme: the
+                    // closest approach is behind. (Only new extremes count: a count of jitter
+                    // back inside the dead band moves the curve back toward its vertex.)
+                    self.segment = Segment::Parallel;
+                    line - s * self.gap
                 } else {
+                    if new_extreme {
+                        self.gap = gap;
+                    }
                     curve
                 }
             }
@@ -521,6 +589,95 @@ mod tests {
         }
         assert!(saw_transition);
         assert!((m.vertex().0 - 0.1).abs() < 1e-9);
+    }
+
+    #[test]
+    fn a_transition_that_cannot_reach_its_line_runs_parallel_to_it_from_its_closest_approach() {
+        // k = 10, h = 0.2, n = 0.5. Down from the loading line at φ = 0.1, the curve
+        // b − A_s·√u closes g(u) = A_s·√u − k·u of the 2h = 0.4 gap; g is largest at
+        // u* = (A_s·n/k)², where the curve's slope is the line's. With A_s = 4 that is
+        // g(0.04) = 0.8 − 0.4 = 2h: it just touches. With A_s = 3.6 it closes g(0.0324) =
+        // 0.648 − 0.324 = 0.324 and never meets the line: from u* on it runs 2h − 0.324 =
+        // 0.076 N·m above the unloading line, at that line's slope, until the next reversal.
+        let p = RestoringParams {
+            a_s: 3.6,
+            ..params()
+        };
+        let mut m = RestoringTorqueModel::new(RestoringCurve::constant(p), AS5048A_COUNT_RAD);
+        let step = 1e-5;
+        let mut phi = 0.0;
+        m.update(phi, 0.0);
+        while phi < 0.1 - 1e-12 {
+            phi += step;
+            m.update(phi, 0.0);
+        }
+        let (a, b) = (phi, p.k * phi + p.h);
+        let u_star = (p.a_s * p.n / p.k).powi(2);
+        let closest = 2.0 * p.h - (p.a_s * u_star.sqrt() - p.k * u_star);
+        assert!((closest - 0.076).abs() < 1e-12);
+        while phi > -0.1 {
+            phi -= step;
+            let tau = m.update(phi, 0.0);
+            let u = a - phi;
+            if u > AS5048A_COUNT_RAD && u < u_star - 2.0 * step {
+                assert_eq!(m.segment(), Segment::Transition, "u={u}");
+                assert!((tau - (b - p.a_s * u.sqrt())).abs() < 1e-12);
+            } else if u > u_star + 2.0 * step {
+                assert_eq!(m.segment(), Segment::Parallel, "u={u}");
+                // Within the curve's change over a sample of the closest approach.
+                let off = tau - (p.k * phi - p.h);
+                assert!((off - closest).abs() < 1e-6, "u={u}: {off} vs {closest}");
+            }
+        }
+        // The next reversal starts a transition from where the parallel line left the loop,
+        // and the curve that does meet its line (A_s = 8, `params`) never runs parallel.
+        phi += 0.01;
+        m.update(phi, 0.0);
+        assert_eq!(m.segment(), Segment::Transition);
+        let mut m = model();
+        for i in 0..4000 {
+            let phi = 0.1 * (i as f64 * 2.0 * std::f64::consts::PI / 1000.0).sin();
+            m.update(phi, 0.0);
+            assert_ne!(m.segment(), Segment::Parallel);
+        }
+    }
+
+    #[test]
+    fn a_loop_held_to_its_closable_gap_meets_its_lines_and_one_past_it_does_not() {
+        // A_s = 3.6, n = 0.5, k = 10: the curve closes at most 0.324 (the test above). Held to
+        // it, h = 0.162 and a full swing's transition just meets the line; with h = 0.2 it
+        // runs parallel. n ≥ 1 closes any gap; n = 1 only while A_s > k.
+        let past = RestoringParams {
+            a_s: 3.6,
+            ..params()
+        };
+        assert!((past.closable_gap() - 0.324).abs() < 1e-12);
+        let held = past.meeting();
+        assert!((held.h - 0.162).abs() < 1e-12);
+        assert_eq!(params().meeting(), params());
+        let n1 = |a_s| RestoringParams {
+            a_s,
+            n: 1.0,
+            ..params()
+        };
+        assert_eq!(n1(12.0).closable_gap(), f64::INFINITY);
+        assert_eq!(n1(8.0).closable_gap(), 0.0);
+        let n2 = RestoringParams { n: 2.0, ..params() };
+        assert_eq!(n2.meeting(), n2);
+        let segments = |p: RestoringParams| {
+            let mut m = RestoringTorqueModel::new(RestoringCurve::constant(p), AS5048A_COUNT_RAD);
+            let mut seen = Vec::new();
+            for i in 0..40_000 {
+                let phi = 0.1 * (i as f64 * std::f64::consts::TAU / 20_000.0).sin();
+                m.update(phi, 0.0);
+                seen.push(m.segment());
+            }
+            seen
+        };
+        // (At the edge itself the curve touches the line: a sample may stop a hair short.)
+        assert!(segments(past).contains(&Segment::Parallel));
+        let inside = segments(RestoringParams { h: 0.16, ..past });
+        assert!(!inside.contains(&Segment::Parallel) && inside.contains(&Segment::Line));
     }
 
     #[test]
