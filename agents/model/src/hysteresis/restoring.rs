@@ -21,11 +21,12 @@
 //! never meets the line, and read literally it would run on, ever flatter, away from the loop
 //! for the rest of the swing. Which of the two happens turns on a hair's breadth of the
 //! parameters (straight lines: the curve closes at most k·u*·(1/n − 1) of the gap, u* =
-//! (A_s·n/k)^(1/(1−n))), so a fit near that edge predicted a held-out swing 60 mN·m off on one
-//! side of it and within the noise on the other. Here such a transition stops at its closest
-//! approach, the point where its slope equals the line's, and from there runs parallel to the
-//! line at that distance until the next reversal: the same where the curve meets the line,
-//! continuous in the parameters where it does not. A fit holds h to the gap its transitions can
+//! (A_s·n/k)^(1/(1−n))), so two fits a hair either side of that edge put the loop's torque on
+//! one held-out swing up to 65 mN·m apart (docs/IDENTIFY.md, the fifth generator's drift
+//! seed 4). Here such a transition stops at its closest approach, the point where its slope
+//! equals the line's, and from there runs parallel to the line at that distance until the next
+//! reversal: the same where the curve meets the line, continuous in the parameters where it
+//! does not. A fit holds h to the gap its transitions can
 //! close ([`RestoringParams::meeting`]), so that h stays the loop's half-height.
 //!
 //! **The envelope's shape.** Paper B draws the envelopes as straight lines, `k·φ ± h`. A lever
