@@ -635,12 +635,20 @@ mod tests {
         phi += 0.01;
         m.update(phi, 0.0);
         assert_eq!(m.segment(), Segment::Transition);
-        let mut m = model();
-        for i in 0..4000 {
-            let phi = 0.1 * (i as f64 * 2.0 * std::f64::consts::PI / 1000.0).sin();
-            m.update(phi, 0.0);
-            assert_ne!(m.segment(), Segment::Parallel);
-        }
+        assert!(!segments_over_a_sine(params(), 1000, 4).contains(&Segment::Parallel));
+    }
+
+    /// The segment after each sample of `periods` periods of 0.1·sin, `per_period` samples
+    /// each, replayed through a loop with `p` everywhere.
+    fn segments_over_a_sine(p: RestoringParams, per_period: usize, periods: usize) -> Vec<Segment> {
+        let mut m = RestoringTorqueModel::new(RestoringCurve::constant(p), AS5048A_COUNT_RAD);
+        (0..per_period * periods)
+            .map(|i| {
+                let phi = 0.1 * (i as f64 * std::f64::consts::TAU / per_period as f64).sin();
+                m.update(phi, 0.0);
+                m.segment()
+            })
+            .collect()
     }
 
     #[test]
@@ -665,16 +673,7 @@ mod tests {
         assert_eq!(n1(8.0).closable_gap(), 0.0);
         let n2 = RestoringParams { n: 2.0, ..params() };
         assert_eq!(n2.meeting(), n2);
-        let segments = |p: RestoringParams| {
-            let mut m = RestoringTorqueModel::new(RestoringCurve::constant(p), AS5048A_COUNT_RAD);
-            let mut seen = Vec::new();
-            for i in 0..40_000 {
-                let phi = 0.1 * (i as f64 * std::f64::consts::TAU / 20_000.0).sin();
-                m.update(phi, 0.0);
-                seen.push(m.segment());
-            }
-            seen
-        };
+        let segments = |p| segments_over_a_sine(p, 20_000, 2);
         // (At the edge itself the curve touches the line: a sample may stop a hair short.)
         assert!(segments(past).contains(&Segment::Parallel));
         let inside = segments(RestoringParams { h: 0.16, ..past });
