@@ -548,8 +548,10 @@ pub fn identify(
         if raw.restoring.is_some() {
             let mut q = p.clone();
             q.restoring = raw.restoring.clone();
-            let from_raw = declared(&mut q)?;
-            if from_raw.error_on(&q.tau, &rows.fit) < base.error_on(&p.tau, &rows.fit) {
+            // A second start that fails leaves the first one's fit.
+            if let Ok(from_raw) = declared(&mut q)
+                && from_raw.error_on(&q.tau, &rows.fit) < base.error_on(&p.tau, &rows.fit)
+            {
                 (p, base) = (q, from_raw);
             }
         }
@@ -569,8 +571,9 @@ pub fn identify(
     {
         let mut q = raw.clone();
         q.restoring = Some(found.clone());
-        let from_tared = declared(&mut q)?;
-        if from_tared.error_on(&q.tau, &rows.fit) < before.error_on(&raw.tau, &rows.fit) {
+        if let Ok(from_tared) = declared(&mut q)
+            && from_tared.error_on(&q.tau, &rows.fit) < before.error_on(&raw.tau, &rows.fit)
+        {
             (raw, before) = (q, from_tared);
             base_before = base_params(opts.model, before.part(0), raw.restoring.as_ref());
             e_before = before.residual_on(&raw.tau, &rows.held);
