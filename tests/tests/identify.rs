@@ -504,7 +504,7 @@ fn a_tare_that_lets_the_loops_fit_find_another_basin_does_not_make_after_worse_t
     // The fifth generator's clean seed 4: a lever with Bouc-Wen friction fitted on a triangle
     // wave (one speed, one amplitude), a multi-sine held out. The tare (0.2 mN·m, under a
     // tenth of the noise) let the loop's refit leave the basin the data as given were fitted
-    // in, for a loop that fits the fit rows a third better and the held-out run twice as
+    // in, for a loop that fits the fit rows a third better and the held-out run nearly twice as
     // badly; reported against the first basin, nothing added came out 1.47 times worse than
     // before. `before` is now the best loop found from the same starts on the data as given.
     let (v, _) = lever_generator("none", 4);

@@ -29,7 +29,7 @@ pub mod signals;
 mod states;
 pub mod stats;
 
-use crate::hysteresis::Envelope;
+use crate::hysteresis::{Envelope, RestoringCurve};
 use crate::lever::LeverVsa;
 pub use effects::{Effect, Place, Shaped};
 pub use envelope::Softening;
@@ -433,6 +433,18 @@ pub fn identify(
         }
         fit(&p.signals(Transform::default()), &[], &p.tau, &rows.fit).ok_or(IdentifyError::Solve)
     };
+    // The loop's fit has many local least squares (kinks where transitions meet lines), so a
+    // fit is tried again from another fit's loop: `p` refitted from `start`, where that fits
+    // `p`'s fit rows better than `f` does (a second start that fails leaves the first's fit).
+    let better_from = |p: &Problem, f: &model::Fitted, start: &RestoringCurve| {
+        if p.restoring.as_ref() == Some(start) {
+            return None;
+        }
+        let mut q = p.clone();
+        q.restoring = Some(start.clone());
+        let g = declared(&mut q).ok()?;
+        (g.error_on(&q.tau, &rows.fit) < f.error_on(&p.tau, &rows.fit)).then_some((q, g))
+    };
     let mut before = declared(&mut raw)?;
     let mut base_before = base_params(opts.model, before.part(0), raw.restoring.as_ref());
     let mut e_before = before.residual_on(&raw.tau, &rows.held);
@@ -541,43 +553,28 @@ pub fn identify(
         p.denoise(torque_per_rad, torque_noise);
         p.tared = true;
         let mut base = declared(&mut p)?;
-        // The loop fitted on the data as given, as a start as well: the loop's fit has many
-        // local least squares (kinks where transitions meet lines), and from the grid a tare
-        // of 26 µN·m moved it to another loop, 8 % worse held out with nothing named (a lever
-        // at ±0.15 rad). The one that fits the fit rows better is kept.
-        if raw.restoring.is_some() {
-            let mut q = p.clone();
-            q.restoring = raw.restoring.clone();
-            // A second start that fails leaves the first one's fit.
-            if let Ok(from_raw) = declared(&mut q)
-                && from_raw.error_on(&q.tau, &rows.fit) < base.error_on(&p.tau, &rows.fit)
-            {
-                (p, base) = (q, from_raw);
-            }
+        // The loop fitted on the data as given, as a start as well: from the grid a tare of
+        // 26 µN·m moved it to another loop, 8 % worse held out with nothing named (a lever at
+        // ±0.15 rad). The one that fits the fit rows better is kept.
+        if let Some(better) = (raw.restoring.as_ref()).and_then(|c| better_from(&p, &base, c)) {
+            (p, base) = better;
         }
         (p, base)
     };
-    // And the other way round: the data as given, refitted from the loop the tare's fit found.
-    // The loop's fit has many local least squares, and a tare of 0.2 mN·m (under a tenth of
-    // the noise) let the refit leave the basin the data as given were fitted in, for one that
-    // fits the fit rows a third better (4.9 against 7.4 mN·m) and the held-out run nearly
-    // twice as badly (16.7 against 9.0 mN·m): with nothing added, `after` was 1.47 times
-    // `before` (a lever with Bouc-Wen friction fitted on a triangle wave, a multi-sine held
-    // out: one speed and one amplitude pin the loop down loosely). `before` and `after` then
-    // differed by where each fit had stopped, not by what was added. Whichever fits the data
-    // as given better is `before`: each is the best loop found from the same starts.
-    if let (Some(given), Some(found)) = (&raw.restoring, &p.restoring)
-        && given != found
+    // And the other way round: the data as given, refitted from the loop the tare's fit found. A
+    // tare of 0.2 mN·m (under a tenth of the noise) let the refit leave the basin the data as given
+    // were fitted in, for one that fits the fit rows a third better (4.9 against 7.4 mN·m) and the
+    // held-out run nearly twice as badly (16.7 against 9.0 mN·m): with nothing added, `after` was
+    // 1.47 times `before` (a lever with Bouc-Wen friction fitted on a triangle wave, a multi-sine
+    // held out: one speed and one amplitude pin the loop down loosely). `before` and `after` then
+    // differed by where each fit had stopped, not by what was added. Whichever fits the data as
+    // given better is `before`: each is the best loop found from the same starts.
+    if raw.restoring.is_some()
+        && let Some(better) = (p.restoring.as_ref()).and_then(|c| better_from(&raw, &before, c))
     {
-        let mut q = raw.clone();
-        q.restoring = Some(found.clone());
-        if let Ok(from_tared) = declared(&mut q)
-            && from_tared.error_on(&q.tau, &rows.fit) < before.error_on(&raw.tau, &rows.fit)
-        {
-            (raw, before) = (q, from_tared);
-            base_before = base_params(opts.model, before.part(0), raw.restoring.as_ref());
-            e_before = before.residual_on(&raw.tau, &rows.held);
-        }
+        (raw, before) = better;
+        base_before = base_params(opts.model, before.part(0), raw.restoring.as_ref());
+        e_before = before.residual_on(&raw.tau, &rows.held);
     }
     let declared_curve = p.restoring.clone();
     let e_tared = base.residual_on(&p.tau, &rows.held);
