@@ -604,6 +604,7 @@ pub fn identify(
         held_errs,
         curve,
         mut refused,
+        unconfirmed,
         not_added,
     } = vetted;
     // The smoother was chosen for q̈ alone. A sensor's first-order filter undone on the angle
@@ -651,7 +652,7 @@ pub fn identify(
     if opts.soften
         && opts.model == Declared::Restoring
         && opts.lever.is_none()
-        && let Some(bend) = envelope::soften_beside(&p, &chosen, &rows, opts, &after)?
+        && let Some(bend) = envelope::soften_beside(&p, &chosen, &rows, opts, &after, &unconfirmed)?
     {
         let bent = Options {
             envelope: Envelope::Softening(bend.c),

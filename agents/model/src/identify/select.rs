@@ -1915,6 +1915,9 @@ pub(crate) struct Vetted {
     pub curve: Option<RestoringCurve>,
     /// Effects the held-out check vetoed.
     pub refused: Vec<super::Refused>,
+    /// Of those, the ones whose held-out error did not drop by more than noise explains, with
+    /// the shape each was chosen with (in the order refused).
+    pub unconfirmed: Vec<Shaped>,
     /// Candidates never added.
     pub not_added: Vec<NotAdded>,
 }
@@ -1937,6 +1940,7 @@ pub(crate) fn with_heldout_veto(
     let (base, base_err, declared_curve) = declared;
     let mut vetoed: Vec<Effect> = Vec::new();
     let mut refused = Vec::new();
+    let mut unconfirmed = Vec::new();
     loop {
         let allowed: Vec<(Effect, Vec<Shaped>)> = candidates
             .iter()
@@ -1954,6 +1958,7 @@ pub(crate) fn with_heldout_veto(
             held_errs: vec![base_err],
             curve: declared_curve.clone(),
             refused: vec![],
+            unconfirmed: vec![],
             not_added: selection.refused.clone(),
         };
         let mut last = base.clone();
@@ -2003,6 +2008,9 @@ pub(crate) fn with_heldout_veto(
                 last = f;
             } else {
                 veto.push(c.effect);
+                if !passes {
+                    unconfirmed.push(*c);
+                }
                 refused.push(super::Refused {
                     effect: c.effect,
                     best_gain: *g,
@@ -2016,6 +2024,7 @@ pub(crate) fn with_heldout_veto(
         }
         if veto.is_empty() || vetoed.len() >= 2 {
             out.refused = refused;
+            out.unconfirmed = unconfirmed;
             return Ok(out);
         }
         vetoed.extend(veto);
