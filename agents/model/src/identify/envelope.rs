@@ -38,8 +38,8 @@ pub struct Softening {
     pub validation_gain: f64,
     /// Held-out RMSE with straight lines and with the bend, beside the effects found with
     /// straight lines [N·m]. For a bend kept beside an effect the held-out check refused
-    /// ([`soften_beside`]), this gain and the second RMSE are of the bend and that effect
-    /// together.
+    /// ([`soften_beside`]), `validation_gain` and the second RMSE are of the bend and that
+    /// effect together.
     pub held_out: (f64, f64),
 }
 
