@@ -54,6 +54,7 @@ for line in sys.stdin:
     tare = "; ".join(
         f"{t['torque_zero']:+.3f} N·m, {t['deflection_zero'] * 1e3:+.2f} mrad"
         + (f", state {t['loop_state']:+.2f}" if t.get("loop_state") is not None else "")
+        + (f" (its rest's {t['zero_not_taken_nm']:+.3f} N·m not taken)" if t.get("zero_not_taken_nm") is not None else "")
         for t in r["tare"]
     ) if isinstance(r["tare"], list) and r["tare"] else "none"
     rows.append((spring, amp, fit, held, k, r["before"]["rmse"], r["tared"]["rmse"], r["after"]["rmse"], effects, bias, steps, tare))

@@ -759,6 +759,33 @@ fn measured_spring_5_at_9_nm_linear_start_names_what_it_lacks_and_says_what_is_m
     }
 }
 
+#[test]
+fn measured_spring_1_at_2_nm_scored_on_its_earlier_test_is_never_worse_than_linear() {
+    // Fitted on the second test, scored on the first. Nothing is named; the first test rests
+    // reading a load (−0.317 N·m at −8.96 mrad) that its own loading branch passes 0.36 N·m
+    // lower later, and the rest rule took 0.445 N·m of it for a zero: 0.310 N·m held out
+    // against the linear spring's 0.267 as measured. Read as measured, it is the linear
+    // spring's.
+    let Some(dir) = springs() else { return };
+    let v = identify_spring(
+        &[&dir.join("kt-2-2-5-1-27022023-162542.csv")],
+        &dir.join("kt-2-1-4-1-27022023-162251.csv"),
+        "spring1-2nm-swapped.json",
+    );
+    let (before, after) = (rmse(&v, "before"), rmse(&v, "after"));
+    assert!(
+        after <= before * (1.0 + 1e-9),
+        "held-out RMSE {before} → {after}"
+    );
+    let untaken = v["tare"][1]["zero_not_taken_nm"].as_f64();
+    assert!(
+        untaken.is_some_and(|z| (z - 0.445).abs() < 0.01),
+        "{}",
+        v["tare"]
+    );
+    assert_eq!(v["tare"][1]["torque_zero"].as_f64(), Some(0.0));
+}
+
 /// `rig identify --model linear` on measured spring tests (the data README's columns), fitted
 /// on `fit` in that order and held out on `held`; the report, written under `report`.
 fn identify_spring(fit: &[&Path], held: &Path, report: &str) -> Value {

@@ -542,6 +542,7 @@ mod tests {
             within_loop: false,
             loop_state: None,
             read_after: None,
+            zero_not_taken: None,
             rest: (0, 10),
         }
     }

@@ -506,6 +506,12 @@ fn zeros_why(t: &Tare) -> String {
             "; its encoder zeroed at its start, read from where {file} ended unloaded"
         ));
     }
+    if let Some(z) = t.zero_not_taken {
+        against.push_str(&format!(
+            "; the {} N·m its rest read not taken for a zero: the file as measured fits better (its rest was loaded, or its zero moved again within the test)",
+            sig(z)
+        ));
+    }
     match t.loop_state {
         Some(lam) => format!(
             "{against}; read as a state of the loop: its stops start at {lam:+.2} of their half-widths"
@@ -556,6 +562,7 @@ fn tare_json(res: &Identified, off: bool) -> Value {
                     "within_loop": t.within_loop,
                     "loop_state": t.loop_state.map_or(Value::Null, num),
                     "read_after": t.read_after,
+                    "zero_not_taken_nm": t.zero_not_taken.map_or(Value::Null, num),
                 })
             })
             .collect(),

@@ -677,6 +677,7 @@ pub fn identify(
             t.deflection_zero = -(frame[k] + p.frame(k));
             t.read_after = read_after[k].clone().filter(|_| p.frame(k) == 0.0);
             t.loop_state = Some(states[k]);
+            t.zero_not_taken = p.untaken.get(k).copied().filter(|d| *d != 0.0);
         }
     }
     let base_coefs = after.part(0).to_vec();

@@ -49,6 +49,11 @@ pub struct Tare {
     /// where that file left the spring, it is read from where that file ended unloaded
     /// ([`super::states::continuity`]). `None`: read as measured.
     pub read_after: Option<String>,
+    /// A held-out run's torque zero that its rest read and the loop-state rule did not take
+    /// [N·m]: with the fit's coefficients the run as measured predicts it better — its rest
+    /// was loaded, or the zero moved again within the test ([`super::states`]). `None`: taken,
+    /// or nothing to take.
+    pub zero_not_taken: Option<f64>,
     /// The samples of the rest, within the run.
     pub(crate) rest: (usize, usize),
 }
@@ -137,6 +142,7 @@ pub fn tare(runs: &[Run]) -> (Vec<Tare>, Option<String>) {
                 within_loop: false,
                 loop_state: None,
                 read_after: None,
+                zero_not_taken: None,
                 rest: (rest.start, rest.end),
                 window_s: rest.window_s,
                 torque_zero: rest.torque,
@@ -244,6 +250,9 @@ pub(crate) struct Problem {
     pub tared: bool,
     /// Each run's torque zero under the loop-state rule: what the loop cannot hold at rest.
     pub shifts: Vec<f64>,
+    /// Each held-out run's torque zero that its rest read but the rule did not take (0: none):
+    /// the run as measured predicted it better ([`super::states::settle`]).
+    pub untaken: Vec<f64>,
     /// Where each run takes the jumps it does not take at their fitted instant: per run,
     /// (the jump's fitted instant, the run's own [s in the run]; +∞: the run has none). A
     /// held-out run's own instant is read from it as a state ([`super::states::settle`]).
@@ -384,6 +393,7 @@ impl Problem {
             tared: false,
             states: None,
             shifts: vec![],
+            untaken: vec![],
             jumps: vec![],
             frames: vec![],
             other_frames: vec![],
@@ -782,6 +792,7 @@ mod tests {
             within_loop: false,
             loop_state: None,
             read_after: None,
+            zero_not_taken: None,
             rest: (0, 10),
         };
         // The first run passes the angle 0 on branches 0.5 N·m either side of the model.
