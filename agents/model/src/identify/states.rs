@@ -327,22 +327,19 @@ fn settle_rests(p: &mut Problem, trial: &[Shaped], rows: &Rows) -> Result<Fitted
         p.states = Some(states);
         (_, f) = fit_once(p)?;
     }
-    // A zero read at rest, or none: whichever predicts the run better (below).
+    // Each held-out run's zero read at rest, or none: whichever predicts the run better
+    // (above), then carried by its prediction.
     let mut untaken = vec![0.0; n];
     for k in p.fit_runs..n {
-        let run = within(&rows.held, p.bounds[k]);
         let d = shifts[k];
-        let (with, without) = run.iter().fold((0.0, 0.0), |(w, o), &i| {
-            let e = p.tau[i] - f.prediction[i];
-            (w + (e - d) * (e - d), o + e * e)
-        });
+        let e = f.residual_on(&p.tau, within(&rows.held, p.bounds[k]));
+        let with: f64 = e.iter().map(|e| (e - d) * (e - d)).sum();
+        let without: f64 = e.iter().map(|e| e * e).sum();
         if d != 0.0 && without < with {
             (untaken[k], shifts[k]) = (d, 0.0);
         }
-    }
-    for (k, &d) in shifts.iter().enumerate().skip(p.fit_runs) {
         let (a, b) = p.bounds[k];
-        f.prediction[a..b].iter_mut().for_each(|v| *v += d);
+        f.prediction[a..b].iter_mut().for_each(|v| *v += shifts[k]);
     }
     p.shifts = shifts;
     p.untaken = untaken;
