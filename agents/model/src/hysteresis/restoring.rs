@@ -27,7 +27,10 @@
 //! equals the line's, and from there runs parallel to the line at that distance until the next
 //! reversal: the same where the curve meets the line, continuous in the parameters where it
 //! does not. A fit holds h to the gap its transitions can
-//! close ([`RestoringParams::meeting`]), so that h stays the loop's half-height.
+//! close within the widest swing of its data ([`RestoringParams::meeting_within`]), so that h
+//! stays the loop's half-height and the loop is one the data show closed: a taller loop never
+//! meets its lines there, and runs between reversals as a line whose level is wherever its
+//! start left it — a torque offset the loop would hold.
 //!
 //! **The envelope's shape.** Paper B draws the envelopes as straight lines, `k·φ ± h`. A lever
 //! joint's spring torque is not straight in φ: τ = G(φ)·k_α·α(φ) bends (MODEL.md §1), and at
@@ -109,6 +112,42 @@ impl RestoringParams {
         }
         let u_star = ((self.a_s * self.n / self.k).ln() / (1.0 - self.n)).exp();
         self.k * u_star * (1.0 / self.n - 1.0)
+    }
+
+    /// The most of the gap a transition closes within a swing of `span` [rad] from its vertex,
+    /// against straight lines of slope k: max over 0 ≤ u ≤ span of A_s·u^n − k·u (never
+    /// negative). The excess is concave for n < 1, so it is [`closable_gap`](Self::closable_gap)
+    /// where its peak u* lies within the span and its value at the span otherwise; for n ≥ 1
+    /// it is largest at the span.
+    pub fn closable_within(&self, span: f64) -> f64 {
+        // No swing (or not a number): nothing closes.
+        if span.is_nan() || span <= 0.0 {
+            return 0.0;
+        }
+        if span == f64::INFINITY {
+            return self.closable_gap();
+        }
+        if self.n < 1.0 {
+            let u_star = ((self.a_s * self.n / self.k).ln() / (1.0 - self.n)).exp();
+            if u_star < span {
+                return self.closable_gap();
+            }
+        }
+        (self.a_s * span.powf(self.n) - self.k * span).max(0.0)
+    }
+
+    /// The same loop with h at most half of what a transition closes over `span`, the widest
+    /// swing the data hold: a loop the data can show. A taller one never reaches its lines on
+    /// them, and then k and h are not the lines' at all: its transitions run between
+    /// reversals as a line of slope ≈ A_s whose level the start left it at, an offset the
+    /// loop should not hold (a bench recording's 0.02 N·m offset was held that way, h fitted
+    /// at 0.21 N·m on a 0.1 rad stroke). `span = ∞` is [`meeting`](Self::meeting).
+    #[must_use]
+    pub fn meeting_within(self, span: f64) -> Self {
+        Self {
+            h: self.h.min(0.5 * self.closable_within(span)),
+            ..self
+        }
     }
 
     /// The same loop with h at most half the [closable gap](Self::closable_gap): one whose
@@ -678,6 +717,38 @@ mod tests {
         assert!(segments(past).contains(&Segment::Parallel));
         let inside = segments(RestoringParams { h: 0.16, ..past });
         assert!(!inside.contains(&Segment::Parallel) && inside.contains(&Segment::Line));
+    }
+
+    #[test]
+    fn a_loop_held_to_the_gap_its_datas_widest_swing_closes_meets_its_lines_on_that_swing() {
+        // n = 1, A_s = 15, k = 10: a transition closes (A_s − k)·u, so over a swing of 0.2
+        // (the sine ±0.1 below) at most 1.0: h ≤ 0.5. A loop with h = 2 never meets its lines
+        // there and runs between reversals as a line of slope A_s; held, it meets them.
+        let tall = RestoringParams {
+            k: 10.0,
+            h: 2.0,
+            a_s: 15.0,
+            n: 1.0,
+        };
+        assert!((tall.closable_within(0.2) - 1.0).abs() < 1e-12);
+        let held = tall.meeting_within(0.2);
+        assert!((held.h - 0.5).abs() < 1e-12);
+        assert_eq!(tall.meeting_within(f64::INFINITY), tall.meeting());
+        let segments = |p| segments_over_a_sine(p, 20_000, 2);
+        assert!(!segments(tall).contains(&Segment::Line));
+        assert!(segments(RestoringParams { h: 0.45, ..held }).contains(&Segment::Line));
+        // n < 1 whose excess peaks inside the span: the closable gap itself (0.324, above);
+        // past it, the excess at the span: 3.6·√0.01 − 10·0.01 = 0.26.
+        let concave = RestoringParams {
+            a_s: 3.6,
+            ..params()
+        };
+        assert!((concave.closable_within(0.2) - 0.324).abs() < 1e-12);
+        assert!((concave.closable_within(0.01) - 0.26).abs() < 1e-12);
+        // n > 1 is below its line near the vertex: nothing closes over a short swing.
+        let convex = RestoringParams { n: 2.0, ..params() };
+        assert_eq!(convex.closable_within(0.1), 0.0);
+        assert_eq!(convex.closable_within(0.0), 0.0);
     }
 
     #[test]
