@@ -717,7 +717,7 @@ mod tests {
         // 1 Hz from −21.5 mrad (a recording that starts mid-swing, not at rest). A loop whose
         // transitions never reach their lines runs between reversals as a line of slope ≈ A_s
         // from where the virgin start left it, (k_fit − A_s)·φ₀ off the centre line: without
-        // the hold, k 1.67 and h 0.34 N·m held the offset in full (RMSE 3.0 mN·m, the noise),
+        // the hold, k 1.70 and h 0.061 N·m held the offset in full (RMSE 3.0 mN·m, the noise),
         // from the table's loop and from the grid alike. Held to the gap the data's 80 mrad
         // swing can close, the loop meets its lines and forgets its start: the offset stays in
         // the residual, and a column beside the loop takes it.
