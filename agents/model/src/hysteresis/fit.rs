@@ -718,9 +718,9 @@ mod tests {
         // transitions never reach their lines runs between reversals as a line of slope ≈ A_s
         // from where the virgin start left it, (k_fit − A_s)·φ₀ off the centre line: without
         // the hold, k 1.70 and h 0.061 N·m held the offset in full (RMSE 3.0 mN·m, the noise),
-        // from the table's loop and from the grid alike. Held to the gap the data's 80 mrad
-        // swing can close, the loop meets its lines and forgets its start: the offset stays in
-        // the residual, and a column beside the loop takes it.
+        // fitted from the grid's starts. Held to the gap the data's 80 mrad swing can close,
+        // the loop meets its lines and forgets its start: the offset stays in the residual, and
+        // a column beside the loop takes it, from the grid's starts and from the true loop.
         let t = RestoringParams {
             k: 2.626,
             h: 0.0019,
