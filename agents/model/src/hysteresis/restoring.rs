@@ -110,8 +110,13 @@ impl RestoringParams {
         if self.n == 1.0 {
             return 0.0;
         }
-        let u_star = ((self.a_s * self.n / self.k).ln() / (1.0 - self.n)).exp();
-        self.k * u_star * (1.0 / self.n - 1.0)
+        self.k * self.excess_peak() * (1.0 / self.n - 1.0)
+    }
+
+    /// For n < 1, u* = (A_s·n/k)^(1/(1−n)): where the transition's slope falls to the line's
+    /// and its excess over the line peaks [rad].
+    fn excess_peak(&self) -> f64 {
+        ((self.a_s * self.n / self.k).ln() / (1.0 - self.n)).exp()
     }
 
     /// The most of the gap a transition closes within a swing of `span` [rad] from its vertex,
@@ -127,11 +132,8 @@ impl RestoringParams {
         if span == f64::INFINITY {
             return self.closable_gap();
         }
-        if self.n < 1.0 {
-            let u_star = ((self.a_s * self.n / self.k).ln() / (1.0 - self.n)).exp();
-            if u_star < span {
-                return self.closable_gap();
-            }
+        if self.n < 1.0 && self.excess_peak() < span {
+            return self.closable_gap();
         }
         (self.a_s * span.powf(self.n) - self.k * span).max(0.0)
     }
@@ -141,7 +143,7 @@ impl RestoringParams {
     /// them, and then k and h are not the lines' at all: its transitions run between
     /// reversals as a line of slope ≈ A_s whose level the start left it at, an offset the
     /// loop should not hold (a bench recording's 0.02 N·m offset was held that way, h fitted
-    /// at 0.21 N·m on a 0.1 rad stroke). `span = ∞` is [`meeting`](Self::meeting).
+    /// at 0.21 N·m on an 80 mrad stroke). `span = ∞` is [`meeting`](Self::meeting).
     #[must_use]
     pub fn meeting_within(self, span: f64) -> Self {
         Self {
@@ -158,10 +160,7 @@ impl RestoringParams {
     /// them sooner.
     #[must_use]
     pub fn meeting(self) -> Self {
-        Self {
-            h: self.h.min(0.5 * self.closable_gap()),
-            ..self
-        }
+        self.meeting_within(f64::INFINITY)
     }
 
     /// Whether every value is finite, k, A_s, n positive and h non-negative.
