@@ -1890,6 +1890,27 @@ pub(crate) const HELDOUT_LR: f64 = 6.63;
 /// spring 1 at 3 N·m 2.81 → 2.11×, their held-out residuals slow, 5–20 effective samples.)
 const HELDOUT_LR_SEARCHED: f64 = 9.21;
 
+/// Whether the held-out fit confirms an effect: its likelihood ratio `n_eff`·ln(`rss0`/`rss1`)
+/// above `needed` — or, where the held-out residual has too few effective samples for that
+/// test to confirm even an effect that halves its RMSE (`n_eff`·ln 4 ≤ [`HELDOUT_LR`]: under
+/// 4.8, a quasi-static test's residual of a few slow swings), an effect that does halve it
+/// and whose ratio is above χ²₁'s 95 % point. Such a check has no power for anything smaller,
+/// and it asked an 8-fold drop of the squared error: a measured spring's hysteresis that took
+/// a held-out test's RMSE from 3.33 to 1.17 N·m over 3.1 effective samples (ratio 6.55) was
+/// refused. An effect that small a check cannot see (a few per cent) is still held to 1 %.
+pub(crate) fn confirmed_held_out(rss0: f64, rss1: f64, n_eff: f64, needed: f64) -> bool {
+    if !(rss0 > 0.0 && rss1 >= 0.0 && n_eff > 0.0) {
+        return false;
+    }
+    let lr = n_eff * (rss0 / rss1).ln();
+    let powerless = n_eff * 4f64.ln() <= HELDOUT_LR;
+    lr > needed || (powerless && rss1 <= rss0 / 4.0 && lr > HELDOUT_LR_POWERLESS)
+}
+
+/// χ²₁'s 95 % point: the held-out level for an effect that halves the held-out RMSE where the
+/// check could not confirm it at [`HELDOUT_LR`] ([`confirmed_held_out`]).
+const HELDOUT_LR_POWERLESS: f64 = 3.84;
+
 /// Why an effect beside another was refused though the held-out data showed it: it lowered the
 /// held-out error by less than `min_gain` ([`with_heldout_veto`]).
 const IMMATERIAL_WHY: &str = "beside the effects kept it lowered the held-out error by less than the smallest gain (--min-gain): the fit data shows it, the held-out data barely does";
@@ -1977,15 +1998,15 @@ pub(crate) fn with_heldout_veto(
             // Each held-out run's state and zeros from its rest, when the rests are states.
             let (fixed, read) = super::states::settle_both(p, &trial, rows)?;
             let (rss0, _) = rss_and_neff(p, &last, &rows.held);
-            let ratio = |f: &Fitted| -> f64 {
+            let confirms = |f: &Fitted, needed: f64| -> bool {
                 let (rss1, n_eff) = rss_and_neff(p, f, &rows.held);
-                n_eff * (rss0 / rss1).ln()
+                confirmed_held_out(rss0, rss1, n_eff, needed)
             };
             let passes = if c.is_jump() && p.fit_runs < p.runs.len() {
                 let read = read.as_ref().unwrap_or(&fixed);
-                ratio(read) > HELDOUT_LR_SEARCHED || ratio(&fixed) > HELDOUT_LR
+                confirms(read, HELDOUT_LR_SEARCHED) || confirms(&fixed, HELDOUT_LR)
             } else {
-                ratio(read.as_ref().unwrap_or(&fixed)) > HELDOUT_LR
+                confirms(read.as_ref().unwrap_or(&fixed), HELDOUT_LR)
             };
             let f = read.unwrap_or(fixed);
             // Beside an effect already kept, it must also matter held out: lower the held-out
@@ -2033,7 +2054,7 @@ pub(crate) fn with_heldout_veto(
 
 #[cfg(test)]
 mod tests {
-    use super::{RowTimes, golden_section, jump_times_of};
+    use super::{HELDOUT_LR, RowTimes, confirmed_held_out, golden_section, jump_times_of};
 
     #[test]
     fn a_jump_is_placed_at_its_sample_with_the_models_own_column_projected_out() {
@@ -2121,5 +2142,38 @@ mod tests {
         assert_eq!(x, 0.7);
         let never = |_: f64| None::<((), f64)>;
         assert_eq!(golden_section((0.0, 2.0), (1.5, ((), 3.0)), never).0, 1.5);
+    }
+
+    #[test]
+    fn a_held_out_check_too_short_to_confirm_a_halving_takes_one_at_five_per_cent() {
+        // The likelihood ratio is n_eff·ln(RSS₀/RSS₁). The check can confirm a halving of the
+        // RMSE (RSS₀/RSS₁ = 4) at 1 % only from n_eff = 6.63 / ln 4 = 4.78 effective samples.
+        let n_star = HELDOUT_LR / 4f64.ln();
+        assert!((n_star - 4.783).abs() < 1e-3, "{n_star}");
+        // The measured spring's case: 3.33 → 1.17 N·m over 3.1 effective samples, a ratio of
+        // 3.1·ln 8.10 = 6.49, under 6.63; a halving, and above 3.84: confirmed.
+        let (rss0, rss1) = (3.33f64.powi(2), 1.17f64.powi(2));
+        assert!(3.1 * (rss0 / rss1).ln() < HELDOUT_LR);
+        assert!(confirmed_held_out(rss0, rss1, 3.1, HELDOUT_LR));
+        // The same samples, the error down by a third only (RSS ×0.44): not a halving, and
+        // the ratio 2.5 is under 6.63: refused.
+        assert!(!confirmed_held_out(1.0, 0.44, 3.1, HELDOUT_LR));
+        // Below 2.77 samples even a halving's ratio (n·ln 4) is under 3.84: refused.
+        assert!(!confirmed_held_out(4.0, 1.0, 2.7, HELDOUT_LR));
+        assert!(confirmed_held_out(4.0, 1.0, 2.8, HELDOUT_LR));
+        // A check with power is held to 1 %: at 5 samples a halving's ratio is 6.93 and
+        // passes as it did; an RSS 3.5 times lower (ratio 6.26) is refused.
+        assert!(confirmed_held_out(4.0, 1.0, 5.0, HELDOUT_LR));
+        assert!(!confirmed_held_out(3.5, 1.0, 5.0, HELDOUT_LR));
+        // A small effect over many samples is not touched: a ripple's 11.7 % lower RSS over
+        // 41 samples (ratio 4.53) is refused, and 15 % lower (6.66) passes.
+        assert!(!confirmed_held_out(1.117, 1.0, 41.0, HELDOUT_LR));
+        assert!(confirmed_held_out(1.176, 1.0, 41.0, HELDOUT_LR));
+        // A searched jump's level (9.21) is kept where the check has power.
+        assert!(!confirmed_held_out(6.0, 1.0, 5.0, 9.21));
+        // Nothing to compare: refused; a perfect fit: confirmed.
+        assert!(!confirmed_held_out(0.0, 1.0, 3.0, HELDOUT_LR));
+        assert!(confirmed_held_out(1.0, 0.0, 3.0, HELDOUT_LR));
+        assert!(!confirmed_held_out(f64::NAN, 1.0, 3.0, HELDOUT_LR));
     }
 }
