@@ -152,7 +152,9 @@ pub struct Shaped {
     pub on: Place,
     /// For an encoder offset: the correction δ the declared model's input gets, x + δ after
     /// t_j [rad]. NaN while it is searched (then it is a column linearised through the
-    /// model's slope); once known, the model is replayed on the corrected input.
+    /// model's slope); once known, the model is replayed on the corrected input. For viscous
+    /// friction on a joint model: the sensor delay (< 0: the deflection lags) [s] that
+    /// validated as well and was not named for it, else NaN.
     pub size: f64,
     /// For a hard stop: the onset x₋ > 0 of the stop on the negative side [rad] (`shape` is
     /// x₊, the positive side's). A torsion spring wound and unwound meets different stops at
@@ -428,7 +430,16 @@ impl Shaped {
                 // 0: the force is all there at any speed the dead band lets through.
                 ("builds_over_rad_per_s", self.shape.max(0.0)),
             ],
-            Effect::ViscousFriction => vec![("damping_nms_per_rad", c(0))],
+            Effect::ViscousFriction => {
+                let mut p = vec![("damping_nms_per_rad", c(0))];
+                // The lag of the deflection that validated as well (to first order the same
+                // column, b ≈ k·|δ|): where the two could not be told apart, the friction is
+                // named ([`super::select`]'s `rank`).
+                if self.size.is_finite() {
+                    p.push(("or_delay_s", self.size));
+                }
+                p
+            }
             Effect::HardStop if self.symmetric => vec![
                 ("onset_rad", self.shape),
                 ("stop_rate_nm_per_rad", c(0)),

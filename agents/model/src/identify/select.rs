@@ -841,7 +841,21 @@ fn rank(p: &Problem, validate: &[usize], paying: Vec<Paying>, min_gain: f64) -> 
         (_, Some(o)) if tied[top].shape.effect == Effect::Gravity => o,
         _ => top,
     };
-    tied.into_iter().nth(pick)
+    // Named friction, it carries the lag of the deflection that validated as well, for the
+    // report to say: a lab that knows its sensors' timing can tell the two apart where the
+    // data could not.
+    let lag_alike = tied
+        .iter()
+        .filter(|c| deflection_lag(p.model, &c.shape))
+        .max_by(|a, b| by_gain(a, b))
+        .map(|c| c.shape.shape);
+    let mut picked = tied.into_iter().nth(pick)?;
+    if picked.shape.effect == Effect::ViscousFriction
+        && let Some(delay) = lag_alike
+    {
+        picked.shape.size = delay;
+    }
+    Some(picked)
 }
 
 /// The jump times where a step best explains the residual `e` (indexed like `rows`): for a
