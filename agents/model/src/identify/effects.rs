@@ -152,10 +152,11 @@ pub struct Shaped {
     pub on: Place,
     /// For an encoder offset: the correction δ the declared model's input gets, x + δ after
     /// t_j [rad]. NaN while it is searched (then it is a column linearised through the
-    /// model's slope); once known, the model is replayed on the corrected input. For viscous
-    /// friction on a joint model: the sensor delay (< 0: the deflection lags) [s] that
-    /// validated as well and was not named for it, else NaN.
+    /// model's slope); once known, the model is replayed on the corrected input.
     pub size: f64,
+    /// For viscous friction on a joint model: the sensor delay (< 0: the deflection lags) [s]
+    /// that validated as well and was not named for it, else NaN. Reported only.
+    pub delay_alike: f64,
     /// For a hard stop: the onset x₋ > 0 of the stop on the negative side [rad] (`shape` is
     /// x₊, the positive side's). A torsion spring wound and unwound meets different stops at
     /// different deflections. NaN where the data never reaches that side.
@@ -185,6 +186,7 @@ impl Shaped {
             shape,
             on: Place::Torque,
             size: f64::NAN,
+            delay_alike: f64::NAN,
             lower: f64::NAN,
             symmetric: false,
             filter: false,
@@ -435,8 +437,8 @@ impl Shaped {
                 // The lag of the deflection that validated as well (to first order the same
                 // column, b ≈ k·|δ|): where the two could not be told apart, the friction is
                 // named ([`super::select`]'s `rank`).
-                if self.size.is_finite() {
-                    p.push(("or_delay_s", self.size));
+                if self.delay_alike.is_finite() {
+                    p.push(("or_delay_s", self.delay_alike));
                 }
                 p
             }

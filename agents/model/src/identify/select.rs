@@ -853,7 +853,7 @@ fn rank(p: &Problem, validate: &[usize], paying: Vec<Paying>, min_gain: f64) -> 
     if picked.shape.effect == Effect::ViscousFriction
         && let Some(delay) = lag_alike
     {
-        picked.shape.size = delay;
+        picked.shape.delay_alike = delay;
     }
     Some(picked)
 }
