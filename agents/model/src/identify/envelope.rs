@@ -16,7 +16,9 @@
 use super::effects::Shaped;
 use super::model::{Fitted, refit_restoring};
 use super::rows::Problem;
-use super::select::{HELDOUT_LR, Rows, golden_section, rss_and_neff, validation_error};
+use super::select::{
+    HELDOUT_LR, Rows, confirmed_held_out, golden_section, rss_and_neff, validation_error,
+};
 use super::states::settle;
 use super::{IdentifyError, Options};
 use crate::hysteresis::Envelope;
@@ -115,7 +117,8 @@ pub(crate) fn soften_beside(
 /// The bend that pays beside the effects `beside`: the best of the grid and its refinement on
 /// the validation rows, which must lower the validation error of what was found (`found`: its
 /// fit and its validation error, straight lines) by `min_gain`, and its held-out error by more
-/// than noise explains.
+/// than noise explains: the effects' own held-out check ([`confirmed_held_out`], its power
+/// weighed the same way).
 fn bend_beside(
     p: &Problem,
     beside: &[Shaped],
@@ -156,8 +159,7 @@ fn bend_beside(
     let bent = settle(&mut q, beside, rows)?;
     let (rss0, _) = rss_and_neff(p, after, &rows.held);
     let (rss1, n_eff) = rss_and_neff(&q, &bent, &rows.held);
-    let ratio = n_eff * (rss0 / rss1).ln();
-    if ratio.is_nan() || ratio <= HELDOUT_LR {
+    if !confirmed_held_out(rss0, rss1, n_eff, HELDOUT_LR) {
         return Ok(None);
     }
     Ok(Some(Softening {
