@@ -56,6 +56,11 @@ pub struct EstimatorReport {
     pub latency_us: LatencySummary,
     /// The same, to the moment every estimate of the tick (each joint's too) was published.
     pub all_published_us: LatencySummary,
+    /// The same, to the moment the tick's first estimate was handed to Zenoh (encoded, its put
+    /// called): the hop and the host's own work, without the put. The put's time is mostly
+    /// Zenoh waking its transmit thread, which the next hop's one way counts again: a raw
+    /// one way starts at the ping's timestamp, taken as its put is called.
+    pub handed_us: LatencySummary,
     /// The transport part of that latency [µs]: from the same Zenoh timestamp to the sample's
     /// arrival in the host, before any estimation.
     pub transport_us: LatencySummary,
@@ -77,11 +82,14 @@ struct Publishers {
 
 impl Publishers {
     /// Publishes the core's outputs in order (the end-effector estimate first); returns how
-    /// many Zenoh refused and when the first estimate was out [ns].
-    fn publish(&self, outputs: Vec<Output>) -> (u64, Option<u64>) {
+    /// many Zenoh refused, and when the first estimate was handed to Zenoh and when it was
+    /// out [ns].
+    fn publish(&self, outputs: Vec<Output>) -> (u64, Option<(u64, u64)>) {
         let mut failed = 0;
+        let mut first_handed = None;
         let mut first_out = None;
         let mut put = |p: &zenoh::pubsub::Publisher<'static>, bytes: Vec<u8>| {
+            first_handed.get_or_insert_with(now_ns);
             failed += u64::from(p.put(bytes).wait().is_err());
         };
         for o in outputs {
@@ -106,7 +114,7 @@ impl Publishers {
                 }
             }
         }
-        (failed, first_out)
+        (failed, first_handed.zip(first_out))
     }
 }
 
@@ -118,6 +126,7 @@ struct State {
     latencies: Histogram,
     transport: Histogram,
     all_out: Histogram,
+    handed: Histogram,
     first_arrival: Option<u64>,
 }
 
@@ -179,8 +188,9 @@ fn on_sample(state: &Mutex<State>, pubs: &Publishers, s: &zenoh::sample::Sample,
     let done = now_ns();
     let mut st = lock(state);
     st.report.publish_errors += failed;
-    if let (Some(t), Some(first)) = (published_ns, first_out) {
+    if let (Some(t), Some((handed, first))) = (published_ns, first_out) {
         st.transport.record(now.saturating_sub(t) / 1000);
+        st.handed.record(handed.saturating_sub(t) / 1000);
         st.latencies.record(first.saturating_sub(t) / 1000);
         st.all_out.record(done.saturating_sub(t) / 1000);
     }
@@ -211,6 +221,7 @@ pub async fn run(
         latencies: Histogram::new(),
         transport: Histogram::new(),
         all_out: Histogram::new(),
+        handed: Histogram::new(),
         first_arrival: None,
     }));
     // One subscriber per joint on its concrete key, not one on `joint/*/sample`: Zenoh caches
@@ -264,6 +275,7 @@ pub async fn run(
         r.latency_us = st.latencies.summary();
         r.transport_us = st.transport.summary();
         r.all_published_us = st.all_out.summary();
+        r.handed_us = st.handed.summary();
         r
     };
     session.close().await.map_err(z)?;

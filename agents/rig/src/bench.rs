@@ -154,6 +154,10 @@ struct LatencyReport {
     rig_latency_max_us: u64,
     /// Latency to the last estimate of the tick (each joint's) [µs].
     rig_all_published_us: LatencySummary,
+    /// Latency to the moment the tick's first estimate was handed to Zenoh (its put called)
+    /// [µs]: `rig_latency_us` less the put, which is mostly Zenoh waking its transmit thread
+    /// (counted again in the next hop's one way, as the raw one way counts the ping's).
+    rig_handed_us: LatencySummary,
     /// The transport part of the rig latency: the completing sample's publication to its
     /// arrival in the estimator host [µs].
     rig_transport_us: LatencySummary,
@@ -551,6 +555,7 @@ fn latency(a: &LatencyArgs) -> Result<(), CliError> {
         rig_latency_us: r.estimator.latency_us,
         rig_latency_max_us: r.estimator.latency_us.max,
         rig_all_published_us: r.estimator.all_published_us,
+        rig_handed_us: r.estimator.handed_us,
         rig_transport_us: r.estimator.transport_us,
         sent,
         lost: sent.saturating_sub(received),
@@ -590,6 +595,12 @@ fn latency(a: &LatencyArgs) -> Result<(), CliError> {
             report.rig_transport_us.p50,
             report.rig_transport_us.p99,
             report.rig_transport_us.p50 as i64 - report.zenoh_one_way_paced_us.p50 as i64
+        );
+        println!(
+            "  to the first put        p50 {:>6} µs   p99 {:>6} µs   (the put itself: p50 {:+} µs)",
+            report.rig_handed_us.p50,
+            report.rig_handed_us.p99,
+            report.rig_latency_us.p50 as i64 - report.rig_handed_us.p50 as i64
         );
         println!(
             "  every estimate out      p50 {:>6} µs   p99 {:>6} µs",
