@@ -6,6 +6,7 @@
 #                 with two tests (in the order of their test ids)
 #   identify NAME ARGS…  `rig identify --model linear` on the data README's columns, the
 #                 report at $out/NAME.json; says so and returns 1 when it fails
+#                 (MODEL=restoring: paper B's restoring model, `rig identify`'s default)
 source "$(dirname "${BASH_SOURCE[0]}")/rig-binary.sh"
 data="${1:-$here/../shared/data/sea-torsion-springs}"
 out="${2:-${TMPDIR:-/tmp}/$out_default}"
@@ -30,7 +31,7 @@ each_pair() {
 identify() {
   local name="$1"
   shift
-  "$rig" identify --model linear --columns t=time,phi=displacement:deg,tau=torque_out \
+  "$rig" identify --model "${MODEL:-linear}" --columns t=time,phi=displacement:deg,tau=torque_out \
     "$@" --report "$out/$name.json" >/dev/null 2>"$out/$name.log" \
     || { echo "$name: failed, see $out/$name.log" >&2; return 1; }
 }
