@@ -805,6 +805,45 @@ fn measured_spring_3_at_3_nm_scored_on_its_earlier_test_keeps_the_hysteresis_tha
     assert_eq!(names(&v), ["hysteresis"]);
 }
 
+#[test]
+fn measured_spring_2_read_in_its_raw_frame_fails_the_restoring_loop_with_an_error_that_names_the_linear_spring()
+ {
+    // Spring 2 at 2 N·m is read −9.6 to −7.2 mrad from its encoder's zero (never re-zeroed
+    // between tests). The restoring loop's lines pass through zero: its linear start finds a
+    // slope of −15 N·m/rad, no spring. The error must say what fits it, and that does.
+    let Some(dir) = springs() else { return };
+    let (fit, held) = (
+        dir.join("kt-2-4-16-2-27022023-172136.csv"),
+        dir.join("kt-2-5-17-2-27022023-172319.csv"),
+    );
+    let out = Command::new(bin("rig"))
+        .args([
+            "identify",
+            "--columns",
+            "t=time,phi=displacement:deg,tau=torque_out",
+        ])
+        .arg("--data")
+        .arg(&fit)
+        .arg("--holdout")
+        .arg(&held)
+        .arg("--report")
+        .arg(scratch("spring2-2nm-restoring.json"))
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(1), "{err}");
+    assert!(err.contains("shows no spring"), "{err}");
+    assert!(err.contains("far from its zero"), "{err}");
+    assert!(err.contains("--model linear"), "{err}");
+    assert!(!err.contains("panicked"), "{err}");
+    let v = identify_spring(&[&fit], &held, "spring2-2nm.json");
+    let k = v["base"]["before"]["stiffness_nm_per_rad"]
+        .as_f64()
+        .unwrap();
+    assert!((2000.0..3200.0).contains(&k), "k = {k} N·m/rad");
+    assert!(rmse(&v, "after") <= rmse(&v, "before"), "{}", v["after"]);
+}
+
 /// `rig identify --model linear` on measured spring tests (the data README's columns), fitted
 /// on `fit` in that order and held out on `held`; the report, written under `report`.
 fn identify_spring(fit: &[&Path], held: &Path, report: &str) -> Value {

@@ -6,9 +6,9 @@
 use std::path::{Path, PathBuf};
 
 use clap::ValueEnum;
-use rig_model::hysteresis::Envelope;
+use rig_model::hysteresis::{Envelope, FitError};
 use rig_model::identify::{
-    Declared, Effect, Holdout, Identified, Options, Place, Run, Tare, identify,
+    Declared, Effect, Holdout, Identified, IdentifyError, Options, Place, Run, Tare, identify,
 };
 use serde_json::{Map, Value, json};
 
@@ -218,6 +218,26 @@ pub fn run(a: &Args) -> Result<(), CliError> {
     let res = identify(&fit_runs, holdout, &opts, &mut |done, total| {
         pb.set_length(total as u64);
         pb.set_position(done as u64);
+    })
+    .map_err(|e| match e {
+        // Two ways the loop finds no spring on a measured spring (docs/IDENTIFY.md, Left): its
+        // reversal detector keeps a dead band of at least one count of the rig's encoder, and
+        // its lines pass through zero (no offset). The linear spring has neither.
+        IdentifyError::Restoring(FitError::NotASpring { slope, .. }) => {
+            let why = if slope.is_nan() {
+                "in no stretch of the data did the deflection move farther than the loop's dead \
+                 band (at least one count of the rig's AS5048A encoder, 0.38 mrad), so no \
+                 sample has a direction"
+            } else {
+                "the loop's lines pass through zero, so a deflection read far from its zero (an \
+                 encoder never re-zeroed) has no spring on them"
+            };
+            CliError::Invalid(format!(
+                "{e}: {why}. A spring without a lever is fitted with `--model linear` (a spring \
+                 with offset)"
+            ))
+        }
+        e => e.into(),
     })?;
     pb.finish_and_clear();
 
