@@ -89,19 +89,20 @@ impl Publishers {
         let mut first_handed = None;
         let mut first_out = None;
         let mut put = |p: &zenoh::pubsub::Publisher<'static>, bytes: Vec<u8>| {
-            first_handed.get_or_insert_with(now_ns);
             failed += u64::from(p.put(bytes).wait().is_err());
         };
         for o in outputs {
             match o {
                 Output::Joint(e) => {
                     if let (Some(p), Ok(bytes)) = (self.joints.get(e.joint as usize), encode(&e)) {
+                        first_handed.get_or_insert_with(now_ns);
                         put(p, bytes);
                         first_out.get_or_insert_with(now_ns);
                     }
                 }
                 Output::Ee(e) => {
                     if let Ok(bytes) = encode(&e) {
+                        first_handed.get_or_insert_with(now_ns);
                         put(&self.ee, bytes);
                         first_out.get_or_insert_with(now_ns);
                     }

@@ -224,7 +224,10 @@ pub fn run(a: &Args) -> Result<(), CliError> {
         // reversal detector keeps a dead band of at least one count of the rig's encoder, and
         // its lines pass through zero (no offset). The linear spring has neither.
         IdentifyError::Restoring(FitError::NotASpring { slope, .. }) => {
-            let why = if slope.is_nan() {
+            let why = if slope > 0.0 {
+                "the deflection did not move both ways by more than the loop's dead band (at \
+                 least one count of the rig's AS5048A encoder, 0.38 mrad)"
+            } else if slope.is_nan() {
                 "in no stretch of the data did the deflection move farther than the loop's dead \
                  band (at least one count of the rig's AS5048A encoder, 0.38 mrad), so no \
                  sample has a direction"
