@@ -220,26 +220,11 @@ pub fn run(a: &Args) -> Result<(), CliError> {
         pb.set_position(done as u64);
     })
     .map_err(|e| match e {
-        // Two ways the loop finds no spring on a measured spring (docs/IDENTIFY.md, Left): its
-        // reversal detector keeps a dead band of at least one count of the rig's encoder, and
-        // its lines pass through zero (no offset). The linear spring has neither.
-        IdentifyError::Restoring(FitError::NotASpring { slope, .. }) => {
-            let why = if slope > 0.0 {
-                "the deflection did not move both ways by more than the loop's dead band (at \
-                 least one count of the rig's AS5048A encoder, 0.38 mrad)"
-            } else if slope.is_nan() {
-                "in no stretch of the data did the deflection move farther than the loop's dead \
-                 band (at least one count of the rig's AS5048A encoder, 0.38 mrad), so no \
-                 sample has a direction"
-            } else {
-                "the loop's lines pass through zero, so a deflection read far from its zero (an \
-                 encoder never re-zeroed) has no spring on them"
-            };
-            CliError::Invalid(format!(
-                "{e}: {why}. A spring without a lever is fitted with `--model linear` (a spring \
-                 with offset)"
-            ))
-        }
+        // The library says why the loop found no spring; what fits such a spring is this
+        // command's to say.
+        IdentifyError::Restoring(FitError::NotASpring { .. }) => CliError::Invalid(format!(
+            "{e}. A spring without a lever is fitted with `--model linear` (a spring with offset)"
+        )),
         e => e.into(),
     })?;
     pb.finish_and_clear();

@@ -15,7 +15,8 @@ use nalgebra::{DMatrix, DVector, Dyn, Owned};
 use thiserror::Error;
 
 use super::restoring::{
-    Envelope, RestoringCurve, RestoringParams, RestoringTorqueModel, ReversalDetector,
+    AS5048A_COUNT_RAD, Envelope, RestoringCurve, RestoringParams, RestoringTorqueModel,
+    ReversalDetector,
 };
 use crate::pchip::InterpError;
 
@@ -55,7 +56,7 @@ pub struct FitOptions {
 impl Default for FitOptions {
     fn default() -> Self {
         Self {
-            dead_band: super::restoring::AS5048A_COUNT_RAD,
+            dead_band: AS5048A_COUNT_RAD,
             d_tolerance: 1e-4,
             min_samples: 20,
             max_evaluations: 400,
@@ -81,7 +82,8 @@ pub enum FitError {
     },
     #[error(
         "the group at d = {d_m} m shows no spring: the deflection must move both ways \
-         and torque must rise with deflection (fitted slope {slope})"
+         and torque must rise with deflection (fitted slope {slope}): {}",
+        not_a_spring_why(*slope)
     )]
     NotASpring { d_m: f64, slope: f64 },
     #[error("column {column} beside the loop has {values} values for {samples} samples")]
@@ -92,6 +94,29 @@ pub enum FitError {
     },
     #[error("cannot build the parameter curve over d: {0}")]
     Curve(#[from] InterpError),
+}
+
+/// Why the linear start found no spring, read from its slope: NaN where no sample got a
+/// direction, positive where the motion went one way only (the start's two conditions), else
+/// a loop whose lines pass through zero could not reach the data (a measured spring read far
+/// from its zero: an encoder never re-zeroed; docs/IDENTIFY.md, Left).
+fn not_a_spring_why(slope: f64) -> String {
+    let band = format!(
+        "the loop's dead band (at least one count of the rig's AS5048A encoder, {:.2} mrad)",
+        AS5048A_COUNT_RAD * 1e3
+    );
+    if slope.is_nan() {
+        format!(
+            "in no stretch of the data did the deflection move farther than {band}, so no \
+             sample has a direction"
+        )
+    } else if slope > 0.0 {
+        format!("the deflection did not move both ways by more than {band}")
+    } else {
+        "the loop's lines pass through zero, so a deflection read far from its zero (an \
+         encoder never re-zeroed) has no spring on them"
+            .into()
+    }
 }
 
 /// The fit at one pivot position.
@@ -1026,9 +1051,27 @@ mod tests {
                 d: 0.0,
             })
             .collect();
-        assert!(matches!(
-            fit_restoring(&mono, &FitOptions::default()),
-            Err(FitError::NotASpring { .. })
-        ));
+        let e = fit_restoring(&mono, &FitOptions::default()).unwrap_err();
+        assert!(matches!(e, FitError::NotASpring { .. }), "{e}");
+        assert!(e.to_string().contains("did not move both ways"), "{e}");
+        // A swing of ±0.9 counts of the clamped dead band: no sample ever gets a direction.
+        let small: Vec<FitSample> = (0..200)
+            .map(|i| {
+                let phi = 0.9 * AS5048A_COUNT_RAD * (i as f64 * 0.1).sin();
+                FitSample {
+                    phi,
+                    tau: 2500.0 * phi,
+                    d: 0.0,
+                }
+            })
+            .collect();
+        let e = fit_restoring(&small, &FitOptions::default()).unwrap_err();
+        assert!(
+            matches!(e, FitError::NotASpring { slope, .. } if slope.is_nan()),
+            "{e}"
+        );
+        assert!(e.to_string().contains("no sample has a direction"), "{e}");
+        // A slope that is not positive (a measured spring read far from its zero):
+        // `measured_spring_2_read_in_its_raw_frame_…` in tests/tests/identify.rs.
     }
 }
