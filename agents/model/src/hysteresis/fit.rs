@@ -34,7 +34,8 @@ pub struct FitSample {
 /// Options of the fit.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct FitOptions {
-    /// Direction dead band [rad] (at least one encoder count).
+    /// Direction dead band [rad]: a few of the encoder's counts (by default one count of the
+    /// rig's AS5048A; not finite and positive: that count).
     pub dead_band: f64,
     /// Samples whose pivot positions differ by less than this belong to one group [m].
     pub d_tolerance: f64,
@@ -83,9 +84,14 @@ pub enum FitError {
     #[error(
         "the group at d = {d_m} m shows no spring: the deflection must move both ways \
          and torque must rise with deflection (fitted slope {slope}): {}",
-        not_a_spring_why(*slope)
+        not_a_spring_why(*slope, *dead_band_rad)
     )]
-    NotASpring { d_m: f64, slope: f64 },
+    NotASpring {
+        d_m: f64,
+        slope: f64,
+        /// The direction dead band the start used [rad].
+        dead_band_rad: f64,
+    },
     #[error("column {column} beside the loop has {values} values for {samples} samples")]
     ColumnLength {
         column: usize,
@@ -100,11 +106,8 @@ pub enum FitError {
 /// direction, positive where the motion went one way only (the start's two conditions), else
 /// a loop whose lines pass through zero could not reach the data (a measured spring read far
 /// from its zero: an encoder never re-zeroed; docs/IDENTIFY.md, Left).
-fn not_a_spring_why(slope: f64) -> String {
-    let band = format!(
-        "the loop's dead band (at least one count of the rig's AS5048A encoder, {:.2} mrad)",
-        AS5048A_COUNT_RAD * 1e3
-    );
+fn not_a_spring_why(slope: f64, dead_band: f64) -> String {
+    let band = format!("the loop's dead band ({:.3} mrad)", dead_band * 1e3);
     if slope.is_nan() {
         format!(
             "in no stretch of the data did the deflection move farther than {band}, so no \
@@ -313,7 +316,11 @@ fn fit_group(
         c0.copy_from_slice(&x[2..]);
     }
     if !(both_ways.0 && both_ways.1 && k0.is_finite() && k0 > 0.0) {
-        return Err(FitError::NotASpring { d_m: d, slope: k0 });
+        return Err(FitError::NotASpring {
+            d_m: d,
+            slope: k0,
+            dead_band_rad: opts.dead_band,
+        });
     }
     let h0 = h0.max(1e-6 * peak.max(1e-9));
 
@@ -1054,7 +1061,8 @@ mod tests {
         let e = fit_restoring(&mono, &FitOptions::default()).unwrap_err();
         assert!(matches!(e, FitError::NotASpring { .. }), "{e}");
         assert!(e.to_string().contains("did not move both ways"), "{e}");
-        // A swing of ±0.9 counts of the clamped dead band: no sample ever gets a direction.
+        // A swing of ±0.9 of the default dead band (one AS5048A count): no sample ever gets a
+        // direction, and the error names the band.
         let small: Vec<FitSample> = (0..200)
             .map(|i| {
                 let phi = 0.9 * AS5048A_COUNT_RAD * (i as f64 * 0.1).sin();
@@ -1071,7 +1079,45 @@ mod tests {
             "{e}"
         );
         assert!(e.to_string().contains("no sample has a direction"), "{e}");
-        // A slope that is not positive (a measured spring read far from its zero):
-        // `measured_spring_2_read_in_its_raw_frame_…` in tests/tests/identify.rs.
+        assert!(e.to_string().contains("dead band (0.383 mrad)"), "{e}");
+        // The same swing read by a finer encoder (three counts of a measured spring's AS5311,
+        // 42 µrad) is a spring: the dead band is the data's, not clamped to the rig's encoder.
+        let fine = FitOptions {
+            dead_band: 42e-6,
+            ..FitOptions::default()
+        };
+        let fit = fit_restoring(&small, &fine).expect("a finer dead band gives directions");
+        let k = fit.groups[0].params.k;
+        assert!((k - 2500.0).abs() < 0.05 * 2500.0, "k = {k}");
+        // A spring read far from its zero (−8.4 mrad, swinging ±1 mrad) with a torque zero
+        // of +0.5 N·m: the start's lines through zero give a slope that is not positive, and
+        // the error says why (`rig identify` then fits the loop beside a torque offset:
+        // `measured_spring_2_read_in_its_raw_frame_…` in tests/tests/identify.rs).
+        let far: Vec<FitSample> = (0..400)
+            .map(|i| {
+                let u = 1e-3 * (i as f64 * 0.05).sin();
+                FitSample {
+                    phi: -8.4e-3 + u,
+                    tau: 2500.0 * u + 0.5,
+                    d: 0.0,
+                }
+            })
+            .collect();
+        let e = fit_restoring(&far, &FitOptions::default()).unwrap_err();
+        assert!(
+            matches!(e, FitError::NotASpring { slope, .. } if slope < 0.0),
+            "{e}"
+        );
+        assert!(e.to_string().contains("far from its zero"), "{e}");
+        // Beside a torque constant the same data is the spring, and the constant its offset.
+        let ones = vec![1.0; far.len()];
+        let (fit, coefs) = fit_restoring_beside(&far, &[&ones], &FitOptions::default()).unwrap();
+        let k = fit.groups[0].params.k;
+        assert!((k - 2500.0).abs() < 0.05 * 2500.0, "k = {k}");
+        let offset = coefs[0][0];
+        assert!(
+            (offset - (0.5 + 2500.0 * 8.4e-3)).abs() < 0.5,
+            "offset {offset} N·m"
+        );
     }
 }

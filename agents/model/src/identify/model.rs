@@ -204,7 +204,8 @@ impl Problem {
             t_rel: vec![],
             duration: 0.0,
             lever: self.lever,
-            base_has_intercept: self.model == Declared::Linear,
+            base_has_intercept: self.model == Declared::Linear
+                || (self.model == Declared::Restoring && self.loop_offset),
             zero_at_rest: self.tared && self.model != Declared::Linear,
             widths: self.widths.clone(),
             slope: None,
@@ -294,7 +295,7 @@ impl Problem {
                 };
                 let replay = |shift: f64| {
                     s.per_run(|a, b| {
-                        let mut m = RestoringTorqueModel::new(curve.clone(), self.dead_band);
+                        let mut m = RestoringTorqueModel::new(curve.clone(), self.loop_dead_band);
                         (a..b).map(|i| m.update(s.xs[i] + shift, s.d[i])).collect()
                     })
                 };
@@ -311,6 +312,9 @@ impl Problem {
                 }
                 s.elastic = vec![base.clone()];
                 s.base = vec![base];
+                if self.loop_offset {
+                    s.base.push(vec![1.0; s.xs.len()]);
+                }
             }
         }
         s
@@ -432,7 +436,7 @@ fn loop_samples(
 
 fn loop_options(p: &Problem, start: Option<RestoringParams>) -> FitOptions {
     FitOptions {
-        dead_band: p.dead_band,
+        dead_band: p.loop_dead_band,
         d_tolerance: 1e-4,
         envelope: p.envelope,
         start,
@@ -453,9 +457,14 @@ pub(crate) fn fit_restoring_on(
         .restoring
         .as_ref()
         .map(|c| c.at(samples.first().map_or(0.0, |s| s.d)));
-    fit_restoring(&samples, &loop_options(p, start))
-        .map(|f| f.curve)
-        .map_err(IdentifyError::Restoring)
+    let opts = loop_options(p, start);
+    let fitted = if p.loop_offset {
+        let ones = vec![1.0; samples.len()];
+        fit_restoring_beside(&samples, &[&ones], &opts).map(|(f, _)| f)
+    } else {
+        fit_restoring(&samples, &opts)
+    };
+    fitted.map(|f| f.curve).map_err(IdentifyError::Restoring)
 }
 
 /// Fits the loop afresh (from the grid's starts only, not from the loop it would replace)
@@ -470,10 +479,13 @@ pub(crate) fn fit_restoring_beside_on(
     columns: &[Vec<f64>],
 ) -> Result<RestoringCurve, IdentifyError> {
     let (samples, at) = loop_samples(p, rows, target, tr);
-    let cols: Vec<Vec<f64>> = columns
+    let mut cols: Vec<Vec<f64>> = columns
         .iter()
         .map(|c| at.iter().map(|&i| c[i]).collect())
         .collect();
+    if p.loop_offset {
+        cols.push(vec![1.0; samples.len()]);
+    }
     let refs: Vec<&[f64]> = cols.iter().map(Vec::as_slice).collect();
     fit_restoring_beside(&samples, &refs, &loop_options(p, None))
         .map(|(f, _)| f.curve)
@@ -491,6 +503,9 @@ pub(crate) fn base_params(
         Declared::Link => vec![("inertia_kgm2", c[0]), ("damping_nms_per_rad", c[1])],
         Declared::Restoring => {
             let mut v = vec![("scale", c[0])];
+            if let Some(&offset) = c.get(1) {
+                v.push(("offset_nm", offset));
+            }
             if let Some(curve) = curve {
                 let t = curve.table();
                 if let Some((_, p)) = t.first() {

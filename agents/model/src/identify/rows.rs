@@ -2,7 +2,7 @@
 //! train or validate; held out). The tare takes each run's zeros from the rest it starts with.
 
 use super::{Declared, Holdout, IdentifyError, Options, Run, signals};
-use crate::hysteresis::{Envelope, RestoringCurve};
+use crate::hysteresis::{AS5048A_COUNT_RAD, Envelope, RestoringCurve};
 use crate::lever::LeverVsa;
 
 /// The role of a row.
@@ -216,6 +216,14 @@ pub(crate) struct Problem {
     /// The declared restoring model's envelope lines.
     pub envelope: Envelope,
     pub dead_band: f64,
+    /// The restoring loop's direction dead band [rad]: one AS5048A count, at most a tenth of
+    /// the fit data's swing, at least three of its counts (see [`Problem::new`]).
+    pub loop_dead_band: f64,
+    /// The restoring loop is fitted beside a torque constant (set by [`super::identify`]):
+    /// its lines pass through zero, and on the data as given they could not reach a
+    /// deflection read far from its zero (an encoder never re-zeroed), so the "before" holds
+    /// an offset, as the linear spring's does.
+    pub loop_offset: bool,
     /// Quantisation step of the angle [rad] (0 when not quantised).
     pub resolution: f64,
     /// Each run's angle white noise as measured, rms [rad] (see [`signals::white_noise_rms`]).
@@ -377,6 +385,8 @@ impl Problem {
             lever: opts.lever,
             envelope: opts.envelope,
             dead_band,
+            loop_dead_band: 0.0,
+            loop_offset: false,
             resolution: if res.is_finite() { res } else { 0.0 },
             noise,
             step,
@@ -402,6 +412,14 @@ impl Problem {
         // Hysteresis: stops from ten dead bands (narrower is Coulomb friction) to half the
         // fit data's range, sixteen per the span (on the measured springs the held-out error falls by up to 10 % from eight).
         let (lo, hi) = p.range_of_fit_angle();
+        // The restoring loop's direction dead band: one count of the rig's AS5048A, the band
+        // the live estimator runs the loop with — but at most a tenth of the fit data's swing,
+        // and never under three of the data's own counts. A finer encoder on a stiff spring
+        // swings less than a few AS5048A counts (measured spring 5 at 1 N·m: 0.73 mrad in
+        // all, its AS5311 14 µrad a count), and a band of 0.38 mrad gave no sample a direction.
+        p.loop_dead_band = opts
+            .dead_band
+            .unwrap_or_else(|| dead_band.max(AS5048A_COUNT_RAD.min(0.1 * (hi - lo))));
         p.widths = super::logspace(
             (10.0 * dead_band).max((hi - lo) / 1000.0),
             0.5 * (hi - lo),
@@ -726,6 +744,7 @@ fn weak_edge(runs: &[Run]) -> f64 {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use std::f64::consts::TAU;
 
     fn run(t: Vec<f64>, tau: Vec<f64>, phi: Vec<f64>) -> Run {
         Run {
@@ -752,6 +771,39 @@ mod tests {
             .collect();
         let phi = t.iter().map(|&t| 0.01 * (t - 3.0).max(0.0)).collect();
         run(t, tau, phi)
+    }
+
+    #[test]
+    fn the_loops_dead_band_is_one_as5048a_count_at_most_a_tenth_of_the_swing_and_at_least_three_of_the_datas_counts()
+     {
+        // 500 Hz swings read by a 14 µrad encoder (a measured spring's AS5311), torque 2500·φ.
+        let res = 14e-6;
+        let t: Vec<f64> = (0..10_000).map(|k| k as f64 / 500.0).collect();
+        let band = |amplitude: f64, res: f64| {
+            let phi: Vec<f64> = t
+                .iter()
+                .map(|&t| (amplitude * (0.5 * TAU * t).sin() / res).round() * res)
+                .collect();
+            let tau = phi.iter().map(|p| 2500.0 * p).collect();
+            let opts = Options {
+                model: Declared::Restoring,
+                ..Options::default()
+            };
+            Problem::new(&[run(t.clone(), tau, phi)], &[], &Holdout::Blocks, &opts).loop_dead_band
+        };
+        // ±10 mrad: the rig's count, as the live estimator runs the loop.
+        assert_eq!(band(10e-3, res), AS5048A_COUNT_RAD);
+        // ±1 mrad: a tenth of the 2 mrad swing (its counts: within a tenth of one), under
+        // the count.
+        let b = band(1e-3, res);
+        assert!((b - 0.2e-3).abs() < 0.1 * res, "{b} rad");
+        // ±0.1 mrad: three of the data's counts, over a tenth of the swing (20 µrad).
+        let b = band(0.1e-3, res);
+        assert!((b - 3.0 * res).abs() < 1e-3 * res, "{b} rad");
+        // Paper B's 14-bit encoder on a lever's ±60 mrad: three of its counts, over the one.
+        let count = TAU / 16384.0;
+        let b = band(60e-3, count);
+        assert!((b - 3.0 * count).abs() < 1e-9, "{b} rad");
     }
 
     #[test]
