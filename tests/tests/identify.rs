@@ -806,42 +806,69 @@ fn measured_spring_3_at_3_nm_scored_on_its_earlier_test_keeps_the_hysteresis_tha
 }
 
 #[test]
-fn measured_spring_2_read_in_its_raw_frame_fails_the_restoring_loop_with_an_error_that_names_the_linear_spring()
+fn measured_spring_2_read_in_its_raw_frame_is_fitted_by_the_restoring_loop_beside_a_torque_offset_and_by_default_as_the_linear_spring()
  {
     // Spring 2 at 2 N·m is read −9.6 to −7.2 mrad from its encoder's zero (never re-zeroed
-    // between tests). The restoring loop's lines pass through zero: its linear start finds a
-    // slope of −15 N·m/rad, no spring. The error must say what fits it, and that does.
+    // between tests). The restoring loop's lines pass through zero: on the data as given its
+    // linear start finds a slope of −15 N·m/rad, no spring. Beside a torque constant (as the
+    // linear spring has) it finds the spring; and a spring's file (no pivot position) gets the
+    // linear spring when no --model is given.
     let Some(dir) = springs() else { return };
     let (fit, held) = (
         dir.join("kt-2-4-16-2-27022023-172136.csv"),
         dir.join("kt-2-5-17-2-27022023-172319.csv"),
     );
-    let out = Command::new(bin("rig"))
-        .args([
-            "identify",
-            "--columns",
-            "t=time,phi=displacement:deg,tau=torque_out",
-        ])
-        .arg("--data")
-        .arg(&fit)
-        .arg("--holdout")
-        .arg(&held)
-        .arg("--report")
-        .arg(scratch("spring2-2nm-restoring.json"))
-        .output()
-        .unwrap();
-    let err = String::from_utf8_lossy(&out.stderr);
-    assert_eq!(out.status.code(), Some(1), "{err}");
-    assert!(err.contains("shows no spring"), "{err}");
-    assert!(err.contains("far from its zero"), "{err}");
-    assert!(err.contains("--model linear"), "{err}");
-    assert!(!err.contains("panicked"), "{err}");
-    let v = identify_spring(&[&fit], &held, "spring2-2nm.json");
-    let k = v["base"]["before"]["stiffness_nm_per_rad"]
+    let command = |model: Option<&str>| {
+        let mut c = Command::new(bin("rig"));
+        c.args(["identify"]);
+        if let Some(m) = model {
+            c.args(["--model", m]);
+        }
+        c.args(["--columns", "t=time,phi=displacement:deg,tau=torque_out"])
+            .arg("--data")
+            .arg(&fit)
+            .arg("--holdout")
+            .arg(&held);
+        c
+    };
+    let linear = identify_spring(&[&fit], &held, "spring2-2nm.json");
+    let k = linear["base"]["before"]["stiffness_nm_per_rad"]
         .as_f64()
         .unwrap();
     assert!((2000.0..3200.0).contains(&k), "k = {k} N·m/rad");
-    assert!(rmse(&v, "after") <= rmse(&v, "before"), "{}", v["after"]);
+    assert!(rmse(&linear, "after") <= rmse(&linear, "before"));
+
+    let r = report_of(
+        command(Some("restoring")),
+        &scratch("spring2-2nm-restoring.json"),
+    );
+    let before = &r["base"]["before"];
+    let k_loop = before["stiffness_nm_per_rad"].as_f64().unwrap();
+    assert!((2000.0..3200.0).contains(&k_loop), "k = {k_loop} N·m/rad");
+    // The offset is the torque at the deflection's zero, about k × 8.4 mrad.
+    let offset = before["offset_nm"].as_f64().unwrap();
+    assert!((15.0..30.0).contains(&offset), "offset {offset} N·m");
+    // A loop with a torque constant holds the linear spring (a loop of no height), so its
+    // "before" is no worse than the linear spring's, and what is added only lowers it.
+    assert!(
+        rmse(&r, "before") <= 1.05 * rmse(&linear, "before"),
+        "loop {} against the linear spring's {}",
+        r["before"],
+        linear["before"]
+    );
+    assert!(rmse(&r, "after") <= rmse(&r, "before"), "{}", r["after"]);
+
+    // No --model: the file has no pivot position, so it is a spring, fitted as the linear
+    // spring is — the same figures as `--model linear`, and the report says why.
+    let d = report_of(command(None), &scratch("spring2-2nm-default.json"));
+    assert_eq!(d["model"], "linear", "{}", d["notes"]);
+    assert_eq!(d["before"], linear["before"]);
+    assert_eq!(d["after"], linear["after"]);
+    let notes = d["notes"].to_string();
+    assert!(
+        notes.contains("no --model") && notes.contains("no pivot position"),
+        "{notes}"
+    );
 }
 
 /// `rig identify --model linear` on measured spring tests (the data README's columns), fitted

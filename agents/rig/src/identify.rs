@@ -49,9 +49,14 @@ pub enum ModelArg {
 pub struct Args {
     #[command(flatten)]
     data: DataArgs,
-    /// The declared model to start from
-    #[arg(long, value_enum, default_value = "restoring")]
-    model: ModelArg,
+    /// The declared model to start from. Default, from what the data is: `restoring` for a
+    /// VSA joint (the data has a pivot position — a `d` column, an MCAP recording — or
+    /// --config/--apply names the joint: the model the estimator runs); `link` where the data
+    /// has a link angle q and no deflection; otherwise `linear`, for a spring (t, φ, τ and no
+    /// pivot), whose loop the `hysteresis` effect draws: on the measured torsion springs it
+    /// does better than paper B's loop without a lever (docs/IDENTIFY.md)
+    #[arg(long, value_enum)]
+    model: Option<ModelArg>,
     /// Rig config: the joint's lever (--joint; else the first lever joint) makes
     /// geometric_stiffness a candidate, and the restoring model's loop is fitted with the
     /// envelope of the config's table (`envelope = "lever"`: the lever's curve), as the
@@ -106,8 +111,40 @@ pub struct Args {
     apply: Option<PathBuf>,
 }
 
+/// The declared model: `--model`, else what the data is (see [`Args::model`]), with why
+/// when it was not given.
+fn model_of(a: &Args, fit: &[Run]) -> (ModelArg, Option<&'static str>) {
+    if let Some(m) = a.model {
+        return (m, None);
+    }
+    if a.config.is_some() || a.apply.is_some() {
+        (
+            ModelArg::Restoring,
+            Some("the config names the joint: the model the estimator runs"),
+        )
+    } else if fit.iter().any(|r| r.d.is_some()) {
+        (
+            ModelArg::Restoring,
+            Some("the data has a pivot position (d): a VSA joint, the model the estimator runs"),
+        )
+    } else if fit.iter().all(|r| r.phi.is_none() && r.q.is_some()) {
+        (
+            ModelArg::Link,
+            Some("the data has a link angle (q) and no deflection"),
+        )
+    } else {
+        (
+            ModelArg::Linear,
+            Some(
+                "the data has no pivot position (d): a spring, whose loop the hysteresis effect \
+                 draws; --model restoring fits paper B's loop instead",
+            ),
+        )
+    }
+}
+
 pub fn run(a: &Args) -> Result<(), CliError> {
-    if a.apply.is_some() && a.model != ModelArg::Restoring {
+    if a.apply.is_some() && a.model.is_some_and(|m| m != ModelArg::Restoring) {
         return Err(CliError::Invalid(
             "--apply needs --model restoring: the live estimator runs the config's restoring-torque model".into(),
         ));
@@ -177,6 +214,15 @@ pub fn run(a: &Args) -> Result<(), CliError> {
     let (fit_runs, mut sampling) = load(&a.data.data)?;
     let (held_runs, held_sampling) = load(&a.data.holdout)?;
     sampling.extend(held_sampling);
+    let (model, chosen) = model_of(a, &fit_runs);
+    let declared = match model {
+        ModelArg::Restoring => Declared::Restoring,
+        ModelArg::Linear => Declared::Linear,
+        ModelArg::Link => Declared::Link,
+    };
+    if let Some(why) = chosen {
+        eprintln!("rig identify: model {}: {why}", declared.name());
+    }
     for s in &sampling {
         let dropped: usize = s.missing.values().sum::<usize>() + s.time_not_increasing;
         if dropped > 0 || s.irregular || s.gaps > 0 {
@@ -195,11 +241,7 @@ pub fn run(a: &Args) -> Result<(), CliError> {
         }
     }
     let opts = Options {
-        model: match a.model {
-            ModelArg::Restoring => Declared::Restoring,
-            ModelArg::Linear => Declared::Linear,
-            ModelArg::Link => Declared::Link,
-        },
+        model: declared,
         lever,
         envelope,
         min_gain: a.min_gain,
@@ -230,12 +272,16 @@ pub fn run(a: &Args) -> Result<(), CliError> {
     pb.finish_and_clear();
 
     let mut notes = notes(&res, &fit_runs, &held_runs);
-    let curved = matches!(envelope, Envelope::Lever(_)) && a.model == ModelArg::Restoring;
+    if let Some(why) = chosen {
+        notes.push(format!("model {} (no --model): {why}", declared.name()));
+    }
+    let curved = matches!(envelope, Envelope::Lever(_)) && model == ModelArg::Restoring;
     if curved {
         notes.push("the restoring loop's envelope follows the lever's curve, as the config's table does (envelope = \"lever\"): its k is the stiffness at rest".into());
     }
     let mut report = report_json(a, &res, &sampling, &notes, held_runs.is_empty());
-    if a.model == ModelArg::Restoring {
+    if model == ModelArg::Restoring {
+        report["loop_dead_band_rad"] = num(res.loop_dead_band);
         report["envelope"] = json!(if curved {
             "lever"
         } else if res.softening.is_some() {
@@ -379,6 +425,13 @@ fn sibling(p: &Path, suffix: &str) -> PathBuf {
 /// Honest remarks on the data: offsets that differ between runs, lags, stick-slip steps.
 fn notes(res: &Identified, fit: &[Run], held: &[Run]) -> Vec<String> {
     let mut n = Vec::new();
+    if res.model == Declared::Restoring
+        && let Some((_, c)) = res.base_before.iter().find(|(k, _)| *k == "offset_nm")
+    {
+        n.push(format!(
+            "before: the loop's lines pass through zero and could not reach the data as given (a deflection read far from its zero: an encoder never re-zeroed), so the loop is fitted beside a torque constant, {c:+.3} N·m, as the linear spring's offset"
+        ));
+    }
     let peak = res
         .heldout
         .measured
