@@ -6,7 +6,7 @@
 #                 with two tests (in the order of their test ids)
 #   identify NAME ARGS…  `rig identify --model linear` on the data README's columns, the
 #                 report at $out/NAME.json; says so and returns 1 when it fails
-#                 (MODEL=restoring: paper B's restoring model, `rig identify`'s default)
+#                 (MODEL=restoring: paper B's restoring model, `rig identify`'s default for a joint)
 source "$(dirname "${BASH_SOURCE[0]}")/rig-binary.sh"
 data="${1:-$here/../shared/data/sea-torsion-springs}"
 out="${2:-${TMPDIR:-/tmp}/$out_default}"

@@ -46,7 +46,10 @@ for line in sys.stdin:
     held = os.path.basename(r["holdout"]["files"][0]).split("-")[3]
     k = r["base"]["before"]["stiffness_nm_per_rad"]
     effects = "; ".join(
-        SHORT[e["name"]](e["params"]) + f" −{e['gain_rmse']:.3f}" for e in r["effects"]
+        # The held-out RMSE's change: − where it fell, + where it rose (a tare that hurt).
+        SHORT[e["name"]](e["params"])
+        + (f" −{g:.3f}" if (g := e["gain_rmse"]) >= 0 else f" +{-g:.3f}")
+        for e in r["effects"]
     ) or "none"
     bias = max((abs(b["mean_residual_nm"]) for b in r["bias"]), default=0.0)
     steps = sum(int(n.split()[1]) for n in r["notes"] if n.startswith("steps:"))
