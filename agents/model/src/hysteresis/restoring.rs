@@ -302,11 +302,11 @@ pub struct ReversalDetector {
 }
 
 impl ReversalDetector {
-    /// A detector starting at `phi0` with unknown direction. `dead_band` [rad] is the
-    /// encoder's: a few of its counts (`rig identify` reads them from the data); where it is
-    /// not finite and positive it is one count of the rig's own AS5048A. It is not clamped to
-    /// that count: a finer encoder (a measured spring's AS5311, 14 µrad) swings less than one
-    /// AS5048A count at small loads, and a dead band of 0.38 mrad would give it no direction.
+    /// A detector starting at `phi0` with unknown direction. `dead_band` [rad] is used as
+    /// given; where it is not finite and positive it is one count of the rig's own AS5048A.
+    /// It is not clamped to that count: a finer encoder (a measured spring's AS5311, 14 µrad)
+    /// swings less than one AS5048A count at small loads, and a dead band of 0.38 mrad would
+    /// give it no direction (`rig identify` takes at most a tenth of the data's swing).
     pub fn new(dead_band: f64, phi0: f64) -> Self {
         let dead_band = if dead_band.is_finite() && dead_band > 0.0 {
             dead_band

@@ -327,8 +327,8 @@ pub struct Identified {
     /// Sampling period used for correlations [s].
     pub dt: f64,
     pub dead_band: f64,
-    /// The restoring loop's direction dead band [rad]: three of the encoder's counts, or
-    /// three times its white noise as measured where that is larger.
+    /// The restoring loop's direction dead band [rad]: one AS5048A count (the live
+    /// estimator's), at most a tenth of the fit data's swing, at least three of its counts.
     pub loop_dead_band: f64,
     /// The angle's white noise as measured, rms [rad]: the encoder's own noise (or its
     /// quantisation where the angle moves counts per sample). The joint models average it
