@@ -818,19 +818,7 @@ fn measured_spring_2_read_in_its_raw_frame_is_fitted_by_the_restoring_loop_besid
         dir.join("kt-2-4-16-2-27022023-172136.csv"),
         dir.join("kt-2-5-17-2-27022023-172319.csv"),
     );
-    let command = |model: Option<&str>| {
-        let mut c = Command::new(bin("rig"));
-        c.args(["identify"]);
-        if let Some(m) = model {
-            c.args(["--model", m]);
-        }
-        c.args(["--columns", "t=time,phi=displacement:deg,tau=torque_out"])
-            .arg("--data")
-            .arg(&fit)
-            .arg("--holdout")
-            .arg(&held);
-        c
-    };
+    let command = |model| spring_command(model, &[&fit], &held);
     let linear = identify_spring(&[&fit], &held, "spring2-2nm.json");
     let k = linear["base"]["before"]["stiffness_nm_per_rad"]
         .as_f64()
@@ -874,19 +862,23 @@ fn measured_spring_2_read_in_its_raw_frame_is_fitted_by_the_restoring_loop_besid
 /// `rig identify --model linear` on measured spring tests (the data README's columns), fitted
 /// on `fit` in that order and held out on `held`; the report, written under `report`.
 fn identify_spring(fit: &[&Path], held: &Path, report: &str) -> Value {
+    report_of(spring_command(Some("linear"), fit, held), &scratch(report))
+}
+
+/// `rig identify` with `--model model` (none: the default) on measured spring tests (the data
+/// README's columns), fitted on `fit` in that order and held out on `held`.
+fn spring_command(model: Option<&str>, fit: &[&Path], held: &Path) -> Command {
     let mut c = Command::new(bin("rig"));
-    c.args([
-        "identify",
-        "--model",
-        "linear",
-        "--columns",
-        "t=time,phi=displacement:deg,tau=torque_out",
-    ]);
+    c.arg("identify");
+    if let Some(m) = model {
+        c.args(["--model", m]);
+    }
+    c.args(["--columns", "t=time,phi=displacement:deg,tau=torque_out"]);
     for f in fit {
         c.arg("--data").arg(f);
     }
     c.arg("--holdout").arg(held);
-    report_of(c, &scratch(report))
+    c
 }
 
 /// Where a measured test ends unloaded [rad], as the data README's columns give it: the

@@ -111,30 +111,40 @@ pub struct Args {
     apply: Option<PathBuf>,
 }
 
+impl From<ModelArg> for Declared {
+    fn from(m: ModelArg) -> Self {
+        match m {
+            ModelArg::Restoring => Declared::Restoring,
+            ModelArg::Linear => Declared::Linear,
+            ModelArg::Link => Declared::Link,
+        }
+    }
+}
+
 /// The declared model: `--model`, else what the data is (see [`Args::model`]), with why
 /// when it was not given.
-fn model_of(a: &Args, fit: &[Run]) -> (ModelArg, Option<&'static str>) {
+fn model_of(a: &Args, fit: &[Run]) -> (Declared, Option<&'static str>) {
     if let Some(m) = a.model {
-        return (m, None);
+        return (m.into(), None);
     }
     if a.config.is_some() || a.apply.is_some() {
         (
-            ModelArg::Restoring,
+            Declared::Restoring,
             Some("the config names the joint: the model the estimator runs"),
         )
     } else if fit.iter().any(|r| r.d.is_some()) {
         (
-            ModelArg::Restoring,
+            Declared::Restoring,
             Some("the data has a pivot position (d): a VSA joint, the model the estimator runs"),
         )
     } else if fit.iter().all(|r| r.phi.is_none() && r.q.is_some()) {
         (
-            ModelArg::Link,
+            Declared::Link,
             Some("the data has a link angle (q) and no deflection"),
         )
     } else {
         (
-            ModelArg::Linear,
+            Declared::Linear,
             Some(
                 "the data has no pivot position (d): a spring, whose loop the hysteresis effect \
                  draws; --model restoring fits paper B's loop instead",
@@ -214,12 +224,7 @@ pub fn run(a: &Args) -> Result<(), CliError> {
     let (fit_runs, mut sampling) = load(&a.data.data)?;
     let (held_runs, held_sampling) = load(&a.data.holdout)?;
     sampling.extend(held_sampling);
-    let (model, chosen) = model_of(a, &fit_runs);
-    let declared = match model {
-        ModelArg::Restoring => Declared::Restoring,
-        ModelArg::Linear => Declared::Linear,
-        ModelArg::Link => Declared::Link,
-    };
+    let (declared, chosen) = model_of(a, &fit_runs);
     if let Some(why) = chosen {
         eprintln!("rig identify: model {}: {why}", declared.name());
     }
@@ -275,12 +280,12 @@ pub fn run(a: &Args) -> Result<(), CliError> {
     if let Some(why) = chosen {
         notes.push(format!("model {} (no --model): {why}", declared.name()));
     }
-    let curved = matches!(envelope, Envelope::Lever(_)) && model == ModelArg::Restoring;
+    let curved = matches!(envelope, Envelope::Lever(_)) && declared == Declared::Restoring;
     if curved {
         notes.push("the restoring loop's envelope follows the lever's curve, as the config's table does (envelope = \"lever\"): its k is the stiffness at rest".into());
     }
     let mut report = report_json(a, &res, &sampling, &notes, held_runs.is_empty());
-    if model == ModelArg::Restoring {
+    if declared == Declared::Restoring {
         report["loop_dead_band_rad"] = num(res.loop_dead_band);
         report["envelope"] = json!(if curved {
             "lever"

@@ -7,7 +7,7 @@ use super::signals::{self, dead_zone};
 use super::stats::{Bound, bounded_least_squares, combine, rmse};
 use super::{Declared, IdentifyError};
 use crate::hysteresis::{
-    FitOptions, FitSample, RestoringCurve, RestoringParams, RestoringTorqueModel, fit_restoring,
+    FitOptions, FitSample, RestoringCurve, RestoringParams, RestoringTorqueModel,
     fit_restoring_beside,
 };
 use crate::lever::LeverVsa;
@@ -457,14 +457,7 @@ pub(crate) fn fit_restoring_on(
         .restoring
         .as_ref()
         .map(|c| c.at(samples.first().map_or(0.0, |s| s.d)));
-    let opts = loop_options(p, start);
-    let fitted = if p.loop_offset {
-        let ones = vec![1.0; samples.len()];
-        fit_restoring_beside(&samples, &[&ones], &opts).map(|(f, _)| f)
-    } else {
-        fit_restoring(&samples, &opts)
-    };
-    fitted.map(|f| f.curve).map_err(IdentifyError::Restoring)
+    fit_loop(p, &samples, vec![], start)
 }
 
 /// Fits the loop afresh (from the grid's starts only, not from the loop it would replace)
@@ -479,15 +472,26 @@ pub(crate) fn fit_restoring_beside_on(
     columns: &[Vec<f64>],
 ) -> Result<RestoringCurve, IdentifyError> {
     let (samples, at) = loop_samples(p, rows, target, tr);
-    let mut cols: Vec<Vec<f64>> = columns
+    let cols: Vec<Vec<f64>> = columns
         .iter()
         .map(|c| at.iter().map(|&i| c[i]).collect())
         .collect();
+    fit_loop(p, &samples, cols, None)
+}
+
+/// The loop fitted on `samples` beside `columns` (one value per sample) and, where the
+/// problem's loop holds an offset ([`Problem::loop_offset`]), a torque constant.
+fn fit_loop(
+    p: &Problem,
+    samples: &[FitSample],
+    mut columns: Vec<Vec<f64>>,
+    start: Option<RestoringParams>,
+) -> Result<RestoringCurve, IdentifyError> {
     if p.loop_offset {
-        cols.push(vec![1.0; samples.len()]);
+        columns.push(vec![1.0; samples.len()]);
     }
-    let refs: Vec<&[f64]> = cols.iter().map(Vec::as_slice).collect();
-    fit_restoring_beside(&samples, &refs, &loop_options(p, None))
+    let refs: Vec<&[f64]> = columns.iter().map(Vec::as_slice).collect();
+    fit_restoring_beside(samples, &refs, &loop_options(p, start))
         .map(|(f, _)| f.curve)
         .map_err(IdentifyError::Restoring)
 }
