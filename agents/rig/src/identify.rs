@@ -13,7 +13,7 @@ use rig_model::identify::{
 use serde_json::{Map, Value, json};
 
 use crate::error::CliError;
-use crate::identify_data::{ColumnMap, DataArgs, Sampling, read};
+use crate::identify_data::{ColumnMap, DataArgs, Layout, Sampling, read};
 
 #[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
 pub enum ModelArg {
@@ -229,6 +229,9 @@ pub fn run(a: &Args) -> Result<(), CliError> {
         eprintln!("rig identify: model {}: {why}", declared.name());
     }
     for s in &sampling {
+        if let Some(note) = s.layout.as_ref().and_then(Layout::note) {
+            eprintln!("rig identify: {}: read as {note}", s.file);
+        }
         let dropped: usize = s.missing.values().sum::<usize>() + s.time_not_increasing;
         if dropped > 0 || s.irregular || s.gaps > 0 {
             eprintln!(

@@ -35,7 +35,9 @@ const QUANTITIES: [(&str, &str, Units); 5] = [
 /// `rig calibrate`).
 #[derive(Debug, clap::Args)]
 pub struct DataArgs {
-    /// Measured data to fit: CSV (header row) or an MCAP recording of the rig. Repeatable
+    /// Measured data to fit: CSV (a header row naming the columns; `,` `;` tab or space
+    /// separated, decimal commas, `#` comments and a `# t,phi,tau` header as numpy's savetxt
+    /// writes are read too) or an MCAP recording of the rig. Repeatable
     #[arg(long, required = true, value_name = "FILE")]
     pub data: Vec<std::path::PathBuf>,
     /// Data held out of the fit, on which the before/after figures are computed. Repeatable.
@@ -128,6 +130,9 @@ pub struct Sampling {
     pub irregular: bool,
     /// The columns read, with their units.
     pub columns: BTreeMap<String, String>,
+    /// How a CSV file was laid out (none for a recording).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub layout: Option<Layout>,
 }
 
 fn sampling(file: &str, rows: usize, t: &[f64]) -> Sampling {
@@ -147,6 +152,7 @@ fn sampling(file: &str, rows: usize, t: &[f64]) -> Sampling {
         gaps: steps.iter().filter(|s| **s > GAP_STEPS * med).count(),
         irregular: p99 > 1.5 * med,
         columns: BTreeMap::new(),
+        layout: None,
     }
 }
 
@@ -166,6 +172,217 @@ pub fn read(
     }
 }
 
+/// How a CSV file is laid out, read from its first lines: what a lab's logger, a spreadsheet
+/// or a script writes, not only `,` and a plain header row.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct Layout {
+    /// The field separator: `,`, `;`, a tab, or runs of spaces (`" "`, numpy's `savetxt`).
+    pub separator: String,
+    /// Numbers written with a decimal comma (`1,5`; a `;`- or tab-separated spreadsheet export).
+    pub decimal_comma: bool,
+    /// The header row was a `#` comment (numpy's `savetxt(…, header=…)` writes `# t,phi,tau`).
+    pub header_commented: bool,
+    /// `#` comment lines skipped (metadata before or inside the data).
+    pub comment_lines: usize,
+    /// The header row is all numbers: perhaps a data row, the header missing.
+    #[serde(skip)]
+    pub header_is_numbers: bool,
+}
+
+impl Layout {
+    /// What was read other than a plain comma-separated file with a header row: `None` for
+    /// that, else e.g. "`;`-separated, decimal commas, the header from a # comment".
+    pub fn note(&self) -> Option<String> {
+        let mut parts = Vec::new();
+        if self.separator != "," {
+            parts.push(format!(
+                "{}-separated",
+                if self.separator.len() == 1 {
+                    format!("`{}`", self.separator)
+                } else {
+                    self.separator.clone()
+                }
+            ));
+        }
+        if self.decimal_comma {
+            parts.push("decimal commas".to_string());
+        }
+        if self.header_commented {
+            parts.push("the header from a # comment".to_string());
+        }
+        if self.comment_lines > 0 {
+            parts.push(format!("{} # comment lines skipped", self.comment_lines));
+        }
+        (!parts.is_empty()).then(|| parts.join(", "))
+    }
+}
+
+/// A layout's separator.
+#[derive(Debug, Clone, Copy, PartialEq)]
+enum Separator {
+    Byte(u8),
+    Spaces,
+}
+
+impl Separator {
+    /// The one the line uses: the most frequent of `,` `;` tab, else runs of spaces.
+    fn of(line: &str) -> Self {
+        [b',', b';', b'\t']
+            .into_iter()
+            .map(|b| (line.bytes().filter(|c| *c == b).count(), b))
+            .filter(|(n, _)| *n > 0)
+            .max_by_key(|(n, _)| *n)
+            .map_or(Self::Spaces, |(_, b)| Self::Byte(b))
+    }
+
+    fn split<'a>(&self, line: &'a str) -> Vec<&'a str> {
+        match self {
+            Self::Byte(b) => line.split(char::from(*b)).map(str::trim).collect(),
+            Self::Spaces => line.split_whitespace().collect(),
+        }
+    }
+
+    fn name(&self) -> String {
+        match self {
+            Self::Byte(b'\t') => "tab".into(),
+            Self::Byte(b) => char::from(*b).to_string(),
+            Self::Spaces => "spaces".into(),
+        }
+    }
+}
+
+/// Whether every field of a line reads as a number (a data row, not a header).
+fn all_numbers(fields: &[&str], decimal_comma: bool) -> bool {
+    !fields.is_empty()
+        && fields.iter().all(|f| {
+            let f = f.trim_matches('"');
+            let f = if decimal_comma {
+                std::borrow::Cow::Owned(f.replace(',', "."))
+            } else {
+                std::borrow::Cow::Borrowed(f)
+            };
+            f.parse::<f64>().is_ok()
+        })
+}
+
+/// Reads a CSV text's layout and rewrites it as plain comma-separated text with its header
+/// row first: a UTF-8 byte-order mark dropped; `#` lines skipped as comments, except that where
+/// the first other line is already numbers the last comment before it is the header (numpy's
+/// `savetxt`); the separator the header uses (`,` `;` tab, else spaces); a decimal comma where
+/// the separator is not a comma and the first data row has one. Errors name what is missing.
+fn normalise(text: &str) -> Result<(String, Layout), String> {
+    let text = text.strip_prefix('\u{feff}').unwrap_or(text);
+    let is_comment = |l: &str| l.trim_start().starts_with('#');
+    let mut lines = text.lines().filter(|l| !l.trim().is_empty());
+    let mut comments: Vec<&str> = Vec::new();
+    let first = loop {
+        match lines.next() {
+            Some(l) if is_comment(l) => comments.push(l),
+            Some(l) => break l,
+            None => {
+                return Err("no header row and no data (an empty file, or only # comments)".into());
+            }
+        }
+    };
+    let sep = Separator::of(first);
+    let mut rest: Vec<&str> = lines.collect();
+    let data_first = all_numbers(&sep.split(first), false) || all_numbers(&sep.split(first), true);
+    // A first line of numbers after a comment: the comment is the header. Without one it
+    // stays the header (columns named 0, 1, 2 are a header too); if no column is found there,
+    // the error says the header row may be missing.
+    let (header, header_commented) = match comments.pop() {
+        Some(h) if data_first => {
+            rest.insert(0, first);
+            (h.trim_start().trim_start_matches('#').trim(), true)
+        }
+        Some(h) => {
+            comments.push(h);
+            (first, false)
+        }
+        None => (first, false),
+    };
+    let sep = if header_commented {
+        Separator::of(header)
+    } else {
+        sep
+    };
+    let mut comment_lines = comments.len();
+    rest.retain(|l| {
+        let c = is_comment(l);
+        comment_lines += usize::from(c);
+        !c
+    });
+    let decimal_comma = sep != Separator::Byte(b',')
+        && rest.first().is_some_and(|l| {
+            l.contains(',')
+                && !all_numbers(&sep.split(l), false)
+                && all_numbers(&sep.split(l), true)
+        });
+    let mut out = String::with_capacity(text.len() + 16);
+    let mut push = |line: &str, decimal: bool| {
+        let fields = sep.split(line);
+        for (i, f) in fields.iter().enumerate() {
+            if i > 0 {
+                out.push(',');
+            }
+            let f = if decimal {
+                f.replace(',', ".")
+            } else {
+                (*f).to_string()
+            };
+            if f.contains(',') || f.contains('"') {
+                out.push('"');
+                out.push_str(&f.replace('"', "\"\""));
+                out.push('"');
+            } else {
+                out.push_str(&f);
+            }
+        }
+        out.push('\n');
+    };
+    match sep {
+        // A comma-separated file goes to the csv reader as it is (quoted fields and all).
+        Separator::Byte(b',') => {
+            out.push_str(header);
+            out.push('\n');
+            for l in &rest {
+                out.push_str(l);
+                out.push('\n');
+            }
+        }
+        _ => {
+            push(header, false);
+            for l in &rest {
+                push(l, decimal_comma);
+            }
+        }
+    }
+    Ok((
+        out,
+        Layout {
+            separator: sep.name(),
+            decimal_comma,
+            header_commented,
+            comment_lines,
+            header_is_numbers: data_first && !header_commented,
+        },
+    ))
+}
+
+/// The column a header names `col`: the same name, else the one name that differs only in case.
+fn column_of(headers: &[String], col: &str) -> Option<usize> {
+    headers.iter().position(|h| h == col).or_else(|| {
+        let mut same = headers
+            .iter()
+            .enumerate()
+            .filter(|(_, h)| h.eq_ignore_ascii_case(col));
+        match (same.next(), same.next()) {
+            (Some((i, _)), None) => Some(i),
+            _ => None,
+        }
+    })
+}
+
 fn read_csv(path: &Path, map: &ColumnMap) -> Result<(Run, Sampling), CliError> {
     let name = path.display().to_string();
     let bad = |m: String| CliError::Invalid(format!("{name}: {m}"));
@@ -173,10 +390,11 @@ fn read_csv(path: &Path, map: &ColumnMap) -> Result<(Run, Sampling), CliError> {
         file: name.clone(),
         source,
     };
+    let bytes = std::fs::read(path).map_err(|e| bad(format!("cannot read it: {e}")))?;
+    let (text, layout) = normalise(&String::from_utf8_lossy(&bytes)).map_err(bad)?;
     let mut rdr = csv::ReaderBuilder::new()
         .flexible(true)
-        .from_path(path)
-        .map_err(csv_err)?;
+        .from_reader(text.as_bytes());
     let headers: Vec<String> = rdr
         .headers()
         .map_err(csv_err)?
@@ -187,15 +405,20 @@ fn read_csv(path: &Path, map: &ColumnMap) -> Result<(Run, Sampling), CliError> {
     let mut idx: BTreeMap<&'static str, (usize, f64)> = BTreeMap::new();
     let mut cols_used = BTreeMap::new();
     for (q, (col, f, unit)) in &map.columns {
-        match headers.iter().position(|h| h == col) {
+        match column_of(&headers, col) {
             Some(i) => {
                 idx.insert(q, (i, *f));
                 cols_used.insert(q.to_string(), format!("{col} [{unit}]"));
             }
             None if map.explicit.contains(q) || ["t", "tau"].contains(q) => {
                 return Err(bad(format!(
-                    "no column \"{col}\" for {q}; the header has: {}{}",
+                    "no column \"{col}\" for {q}; the header has: {}{}{}",
                     headers.join(", "),
+                    if layout.header_is_numbers {
+                        " (all numbers: is the header row missing? The first line must name the columns)"
+                    } else {
+                        ""
+                    },
                     if map.explicit.is_empty() {
                         " (map columns with --columns, e.g. t=time,phi=displacement:deg,tau=torque_out)"
                     } else {
@@ -265,6 +488,7 @@ fn read_csv(path: &Path, map: &ColumnMap) -> Result<(Run, Sampling), CliError> {
     s.missing = missing;
     s.time_not_increasing = back;
     s.columns = cols_used;
+    s.layout = Some(layout);
     Ok((run, s))
 }
 
@@ -447,5 +671,117 @@ mod tests {
             e.contains("no column \"t\"") && e.contains("--columns"),
             "{e}"
         );
+    }
+
+    /// The same 40 rows, laid out as a comma-separated file with a plain header.
+    fn rows() -> Vec<[f64; 3]> {
+        (0..40)
+            .map(|i| {
+                let t = 0.001 * f64::from(i);
+                [t, 0.01 * (7.0 * t).sin(), 2.5 * (7.0 * t).sin() - 0.125]
+            })
+            .collect()
+    }
+
+    #[test]
+    fn csv_files_as_loggers_spreadsheets_and_numpy_write_them_are_read_alike() {
+        let dir = std::env::temp_dir().join(format!("rig-layouts-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let line = |r: &[f64; 3], sep: &str, decimal_comma: bool| {
+            r.iter()
+                .map(|v| {
+                    let v = format!("{v:e}");
+                    if decimal_comma {
+                        v.replace('.', ",")
+                    } else {
+                        v
+                    }
+                })
+                .collect::<Vec<_>>()
+                .join(sep)
+        };
+        let body = |sep: &str, dc: bool, eol: &str| -> String {
+            rows().iter().map(|r| line(r, sep, dc) + eol).collect()
+        };
+        // (file, text, what the layout note says)
+        let cases: Vec<(&str, String, Option<&str>)> = vec![
+            (
+                "plain.csv",
+                format!("t,phi,tau\n{}", body(",", false, "\n")),
+                None,
+            ),
+            (
+                "excel.csv",
+                format!("\u{feff}t;phi;tau\r\n{}", body(";", true, "\r\n")),
+                Some("`;`-separated, decimal commas"),
+            ),
+            (
+                "savetxt.txt",
+                format!("# t phi tau\n{}", body(" ", false, "\n")),
+                Some("spaces-separated, the header from a # comment"),
+            ),
+            (
+                "savetxt.csv",
+                format!("# t,phi,tau\n{}", body(",", false, "\n")),
+                Some("the header from a # comment"),
+            ),
+            (
+                "logger.tsv",
+                format!(
+                    "# bench logger 1.2\n# 1 kHz\n\nT\tPhi\tTAU\n{}# paused\n{}",
+                    body("\t", false, "\n"),
+                    ""
+                ),
+                Some("tab-separated, 3 # comment lines skipped"),
+            ),
+        ];
+        let map = ColumnMap::parse(None).unwrap();
+        let want = rows();
+        for (file, text, note) in cases {
+            let f = dir.join(file);
+            std::fs::write(&f, text).unwrap();
+            let (run, smp) = read(&f, &map, None).unwrap_or_else(|e| panic!("{file}: {e}"));
+            assert_eq!(smp.used, 40, "{file}");
+            let phi = run.phi.as_ref().unwrap();
+            for (i, r) in want.iter().enumerate() {
+                assert_eq!([run.t[i], phi[i], run.tau[i]], *r, "{file} row {i}");
+            }
+            assert_eq!(
+                smp.layout.as_ref().unwrap().note().as_deref(),
+                note,
+                "{file}"
+            );
+        }
+    }
+
+    #[test]
+    fn a_file_with_no_header_or_no_rows_is_refused_saying_so() {
+        let dir = std::env::temp_dir().join(format!("rig-noheader-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let map = ColumnMap::parse(None).unwrap();
+        let err = |name: &str, text: &str| {
+            let f = dir.join(name);
+            std::fs::write(&f, text).unwrap();
+            read(&f, &map, None).unwrap_err().to_string()
+        };
+        let e = err("empty.csv", "");
+        assert!(
+            e.contains("empty.csv") && e.contains("no header row"),
+            "{e}"
+        );
+        let e = err("comments.csv", "# only\n# comments\n");
+        assert!(e.contains("only # comments"), "{e}");
+        let e = err("numbers.csv", "0.0,0.1,0.2\n0.001,0.1,0.2\n");
+        assert!(
+            e.contains("no column \"t\"") && e.contains("is the header row missing"),
+            "{e}"
+        );
+        // Two columns that differ from `tau` only in case: which one is meant is not guessed.
+        let mut text = String::from("t,phi,Tau,TAU\n");
+        for i in 0..30 {
+            text.push_str(&format!("{},0.0,1.0,2.0\n", f64::from(i) * 0.01));
+        }
+        let e = err("twice.csv", &text);
+        assert!(e.contains("no column \"tau\""), "{e}");
     }
 }
