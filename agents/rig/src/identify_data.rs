@@ -16,18 +16,34 @@ type Units = &'static [(&'static str, f64)];
 
 /// The quantities `rig identify` reads: name, meaning, units.
 const QUANTITIES: [(&str, &str, Units); 5] = [
-    ("t", "time", &[("s", 1.0), ("ms", 1e-3)]),
+    (
+        "t",
+        "time",
+        &[("s", 1.0), ("ms", 1e-3), ("us", 1e-6), ("ns", 1e-9)],
+    ),
     (
         "phi",
         "deflection",
-        &[("rad", 1.0), ("deg", std::f64::consts::PI / 180.0)],
+        &[
+            ("rad", 1.0),
+            ("deg", std::f64::consts::PI / 180.0),
+            ("mrad", 1e-3),
+        ],
     ),
-    ("tau", "torque", &[("Nm", 1.0), ("Nmm", 1e-3)]),
+    (
+        "tau",
+        "torque",
+        &[("Nm", 1.0), ("Nmm", 1e-3), ("mNm", 1e-3)],
+    ),
     ("d", "pivot position", &[("mm", 1e-3), ("m", 1.0)]),
     (
         "q",
         "link angle",
-        &[("rad", 1.0), ("deg", std::f64::consts::PI / 180.0)],
+        &[
+            ("rad", 1.0),
+            ("deg", std::f64::consts::PI / 180.0),
+            ("mrad", 1e-3),
+        ],
     ),
 ];
 
@@ -46,7 +62,7 @@ pub struct DataArgs {
     #[arg(long, value_name = "FILE")]
     pub holdout: Vec<std::path::PathBuf>,
     /// Which CSV column is which quantity, with units: QUANTITY=COLUMN[:UNIT],…
-    /// Quantities: t (s|ms), phi (rad|deg), tau (Nm|Nmm), d (mm|m), q (rad|deg).
+    /// Quantities: t (s|ms|us|ns), phi (rad|deg|mrad), tau (Nm|Nmm|mNm), d (mm|m), q (rad|deg|mrad).
     /// Default: columns named t, phi, tau, d, q in s, rad, N·m, mm, rad
     #[arg(long, value_name = "MAP", verbatim_doc_comment)]
     pub columns: Option<String>,
@@ -632,6 +648,11 @@ mod tests {
         assert!((m.columns["phi"].1 - std::f64::consts::PI / 180.0).abs() < 1e-15);
         assert_eq!(m.columns["tau"].1, 1e-3);
         assert_eq!(m.columns["d"].1, 1e-3, "d defaults to mm");
+        let m = ColumnMap::parse(Some("t=stamp:ns,phi=x:mrad,tau=y:mNm,q=z:mrad")).unwrap();
+        assert_eq!(m.columns["t"].1, 1e-9);
+        assert_eq!(m.columns["phi"].1, 1e-3);
+        assert_eq!(m.columns["tau"].1, 1e-3);
+        assert_eq!(m.columns["q"].1, 1e-3);
         let e = ColumnMap::parse(Some("phi=x:furlong"))
             .unwrap_err()
             .to_string();
