@@ -56,6 +56,7 @@ for line in sys.stdin:
     lag = next((e["params"]["delay_s"] for e in r["effects"] if e["name"] == "sensor_delay"), None)
     tare = "; ".join(
         f"{t['torque_zero']:+.3f} N·m, {t['deflection_zero'] * 1e3:+.2f} mrad"
+        + (" (its own rest: the zero moved)" if t.get("frame_at_rest") else "")
         + (f", state {t['loop_state']:+.2f}" if t.get("loop_state") is not None else "")
         + (f" (its rest's {t['zero_not_taken_nm']:+.3f} N·m not taken)" if t.get("zero_not_taken_nm") is not None else "")
         for t in r["tare"]

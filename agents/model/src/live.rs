@@ -543,6 +543,7 @@ mod tests {
             loop_state: None,
             read_after: None,
             zero_not_taken: None,
+            frame_at_rest: false,
             rest: (0, 10),
         }
     }

@@ -575,6 +575,11 @@ fn zeros_why(t: &Tare) -> String {
             "; its encoder zeroed at its start, read from where {file} ended unloaded"
         ));
     }
+    if t.frame_at_rest {
+        against.push_str(
+            "; its deflection read from its own rest, put where the first file's rest is: its zero moved between the tests (this predicts it better than the frame it was given)",
+        );
+    }
     if let Some(z) = t.zero_not_taken {
         against.push_str(&format!(
             "; the {} N·m its rest read not taken for a zero: the file as measured fits better (its rest was loaded, or its zero moved again within the test)",
@@ -631,6 +636,7 @@ fn tare_json(res: &Identified, off: bool) -> Value {
                     "within_loop": t.within_loop,
                     "loop_state": t.loop_state.map_or(Value::Null, num),
                     "read_after": t.read_after,
+                    "frame_at_rest": t.frame_at_rest,
                     "zero_not_taken_nm": t.zero_not_taken.map_or(Value::Null, num),
                 })
             })

@@ -546,6 +546,17 @@ pub fn identify(
         // A shift of the deflection leaves each rest's samples where they were.
         p.loop_rests = loop_rests;
         p.other_frames = other_frame;
+        // What reads each held-out run with its own rest where the first fit run's is (its
+        // zero moved between the tests): its rest, in the frame it was given, taken off.
+        p.rest_frames = (0..frame.len())
+            .map(|k| {
+                if k < fit_runs.len() {
+                    0.0
+                } else {
+                    -(tare[k].deflection_zero + frame[k])
+                }
+            })
+            .collect();
         let base = states::settle(&mut p, &[], &rows)?;
         (p, base)
     } else if tare.is_empty() {
@@ -691,6 +702,7 @@ pub fn identify(
             // from the fit run's end.
             t.deflection_zero = -(frame[k] + p.frame(k));
             t.read_after = read_after[k].clone().filter(|_| p.frame(k) == 0.0);
+            t.frame_at_rest = p.frame(k) != 0.0 && p.frame(k) == p.rest_frames[k];
             t.loop_state = Some(states[k]);
             t.zero_not_taken = p.untaken.get(k).copied().filter(|d| *d != 0.0);
         }

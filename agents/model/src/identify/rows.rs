@@ -54,6 +54,10 @@ pub struct Tare {
     /// was loaded, or the zero moved again within the test ([`super::states`]). `None`: taken,
     /// or nothing to take.
     pub zero_not_taken: Option<f64>,
+    /// A held-out run whose deflection is read from its own rest, put where the first fit
+    /// run's rest is: its zero moved between the tests, which predicted the run better than the
+    /// frame it was given ([`super::states`]). Its `deflection_zero` is then its rest's.
+    pub frame_at_rest: bool,
     /// The samples of the rest, within the run.
     pub(crate) rest: (usize, usize),
 }
@@ -143,6 +147,7 @@ pub fn tare(runs: &[Run]) -> (Vec<Tare>, Option<String>) {
                 loop_state: None,
                 read_after: None,
                 zero_not_taken: None,
+                frame_at_rest: false,
                 rest: (rest.start, rest.end),
                 window_s: rest.window_s,
                 torque_zero: rest.torque,
@@ -272,6 +277,9 @@ pub(crate) struct Problem {
     /// For each held-out run whose encoder frame was carried from the fit runs
     /// ([`super::states::continuity`]): the shift that reads it as measured instead (0: none).
     pub other_frames: Vec<f64>,
+    /// For each held-out run: the shift that puts its rest where the first fit run's is (its
+    /// zero moved between the tests; 0 for a fit run).
+    pub rest_frames: Vec<f64>,
 }
 
 /// When run `k` takes the jump fitted at `tj` [s in the run]: its own instant where `jumps`
@@ -407,6 +415,7 @@ impl Problem {
             jumps: vec![],
             frames: vec![],
             other_frames: vec![],
+            rest_frames: vec![],
         };
         p.set_rate_window(opts.rate_window.unwrap_or(0.02));
         // Hysteresis: stops from ten dead bands (narrower is Coulomb friction) to half the
@@ -845,6 +854,7 @@ mod tests {
             loop_state: None,
             read_after: None,
             zero_not_taken: None,
+            frame_at_rest: false,
             rest: (0, 10),
         };
         // The first run passes the angle 0 on branches 0.5 N·m either side of the model.

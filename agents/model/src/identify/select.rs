@@ -1467,7 +1467,10 @@ fn search(
         if cand.effect == Effect::HardStop && !loaded_between_stops(p, s, &f, &cand, train) {
             return None;
         }
-        if cand.effect == Effect::StiffnessDrift && !loaded_either_side(s, cand.shape, train) {
+        if cand.effect == Effect::StiffnessDrift
+            && !(loaded_either_side(s, cand.shape, train)
+                && stiffness_stays_positive(&cand, f.part(trial.len()), s, f.part(0)))
+        {
             return None;
         }
         let e = f.error_on(&p.tau, validate);
@@ -1750,6 +1753,21 @@ fn loaded_either_side(s: &Signals, t_j: f64, rows: &[usize]) -> bool {
     before.min(after) >= 0.05 * (before + after)
 }
 
+/// Whether a stiffness drift or step leaves the declared spring's stiffness positive over the
+/// whole run: (1 + c·t) over the run, or 1 + c after the step, above zero. A passive spring
+/// cannot push the way it is deflected; a step of −122 % (measured spring 2 at 5 N·m, fitted
+/// on its second test, 9.8 s into its first loading ramp) fitted the loop's shape, not the
+/// spring. (Beside stops that carry part of the stiffness, the declared column is the spring
+/// beyond them: its share, not the whole, scales.)
+fn stiffness_stays_positive(cand: &Shaped, coefs: &[f64], s: &Signals, base: &[f64]) -> bool {
+    let params = cand.params(coefs, s, base);
+    let change = params
+        .iter()
+        .find(|(k, _)| *k == "stiffness_step" || *k == "stiffness_change_over_run")
+        .map_or(f64::NAN, |(_, v)| *v);
+    1.0 + change.min(0.0) > 0.0
+}
+
 /// Whether the declared spring still carries load between a stop's onsets: its coefficient
 /// is positive by three standard errors on the rows between them. A spring that carries
 /// nothing there and stiffens beyond them is a gap in series with it (backlash, perhaps
@@ -1925,6 +1943,10 @@ pub(crate) fn confirmed_held_out(rss0: f64, rss1: f64, n_eff: f64, needed: f64) 
 /// check could not confirm it at [`HELDOUT_LR`] ([`confirmed_held_out`]).
 const HELDOUT_LR_POWERLESS: f64 = 3.84;
 
+/// Why a stiffness drift or step was refused where it left the spring's stiffness negative
+/// ([`stiffness_stays_positive`], [`with_heldout_veto`]).
+const NOT_A_SPRING_WHY: &str = "fitted beside the effects kept it would make the spring's stiffness negative within the run: a passive spring cannot, so it fits something else (the loop's shape)";
+
 /// Why an effect beside another was refused though the held-out data showed it: it lowered the
 /// held-out error by less than `min_gain` ([`with_heldout_veto`]).
 const IMMATERIAL_WHY: &str = "beside the effects kept it lowered the held-out error by less than the smallest gain (--min-gain): the fit data shows it, the held-out data barely does";
@@ -2035,7 +2057,14 @@ pub(crate) fn with_heldout_veto(
             // `held_errs` ends with `last`'s held-out error (the base's first).
             let before = out.held_errs.last().copied().unwrap_or(base_err);
             let material = out.kept.is_empty() || err <= (1.0 - opts.min_gain) * before;
-            if passes && material {
+            // A stiffness drift or step is judged again in the set it ends in: its share of the
+            // spring is the declared column's, which the effects beside it change (stops that
+            // carry part of the stiffness leave the column less of it).
+            let a_spring = c.effect != Effect::StiffnessDrift || {
+                let s = p.signals(Transform::of(&trial));
+                stiffness_stays_positive(c, f.part(trial.len()), &s, f.part(0))
+            };
+            if passes && material && a_spring {
                 out.kept = trial;
                 out.gains.push(*g);
                 out.held_errs.push(err);
@@ -2049,7 +2078,9 @@ pub(crate) fn with_heldout_veto(
                 refused.push(super::Refused {
                     effect: c.effect,
                     best_gain: *g,
-                    why: if passes {
+                    why: if !a_spring {
+                        NOT_A_SPRING_WHY
+                    } else if passes {
                         IMMATERIAL_WHY
                     } else {
                         "lowered the validation error but not the held-out error by more than noise explains"
