@@ -702,7 +702,7 @@ pub fn identify(
             // from the fit run's end.
             t.deflection_zero = -(frame[k] + p.frame(k));
             t.read_after = read_after[k].clone().filter(|_| p.frame(k) == 0.0);
-            t.frame_at_rest = p.frame(k) != 0.0 && p.frame(k) == p.rest_frames[k];
+            t.frame_at_rest = p.at_rest.get(k).copied().unwrap_or(false);
             t.loop_state = Some(states[k]);
             t.zero_not_taken = p.untaken.get(k).copied().filter(|d| *d != 0.0);
         }

@@ -280,6 +280,10 @@ pub(crate) struct Problem {
     /// For each held-out run: the shift that puts its rest where the first fit run's is (its
     /// zero moved between the tests; 0 for a fit run).
     pub rest_frames: Vec<f64>,
+    /// Each run read with its rest where the first fit run's is (`rest_frames`, chosen by
+    /// [`super::states::settle`]): it rests in that run's state, and what differs at rest is
+    /// a torque zero. None listed: no run.
+    pub at_rest: Vec<bool>,
 }
 
 /// When run `k` takes the jump fitted at `tj` [s in the run]: its own instant where `jumps`
@@ -416,6 +420,7 @@ impl Problem {
             frames: vec![],
             other_frames: vec![],
             rest_frames: vec![],
+            at_rest: vec![],
         };
         p.set_rate_window(opts.rate_window.unwrap_or(0.02));
         // Hysteresis: stops from ten dead bands (narrower is Coulomb friction) to half the

@@ -144,6 +144,7 @@ pub(crate) fn settle_both(
 ) -> Result<(Fitted, Option<Fitted>), IdentifyError> {
     p.jumps.clear();
     p.frames.clear();
+    p.at_rest.clear();
     let mut f = settle_rests(p, trial, rows)?;
     if choose_frames(p, trial, rows, &f)? {
         f = settle_rests(p, trial, rows)?;
@@ -185,11 +186,12 @@ fn choose_frames(
     rows: &Rows,
     f: &Fitted,
 ) -> Result<bool, IdentifyError> {
-    // (frames, whether it must beat the reading before it by more than noise explains)
+    // (frames, whether they are the rests': those must beat the reading before them by more
+    // than noise explains)
     let alternatives: Vec<(Vec<f64>, bool)> = [(&p.other_frames, false), (&p.rest_frames, true)]
         .into_iter()
         .filter(|(d, _)| d.iter().any(|d| *d != 0.0))
-        .map(|(d, confirm)| (d.clone(), confirm))
+        .map(|(d, at_rest)| (d.clone(), at_rest))
         .collect();
     if alternatives.is_empty() {
         return Ok(false);
@@ -202,11 +204,13 @@ fn choose_frames(
     let sse = |p: &Problem, h: &Fitted, k: usize| -> f64 {
         residual(p, h, k).iter().map(|e| e * e).sum()
     };
-    // Per run: the best squared error so far and the frame that gave it (0: the given one).
-    let mut best: Vec<(f64, f64)> = (0..p.runs.len())
-        .map(|k| (if k < p.fit_runs { 0.0 } else { sse(p, f, k) }, 0.0))
+    // Per run: the best squared error so far, the frame that gave it (0: the given one) and
+    // whether it is the rest's.
+    let mut best: Vec<(f64, f64, bool)> = (0..p.runs.len())
+        .map(|k| (if k < p.fit_runs { 0.0 } else { sse(p, f, k) }, 0.0, false))
         .collect();
-    for (frames, confirm) in alternatives {
+    for (frames, at_rest) in alternatives {
+        p.at_rest = frames.iter().map(|d| at_rest && *d != 0.0).collect();
         p.frames = frames;
         let g = settle_rests(p, trial, rows)?;
         for (k, b) in best.iter_mut().enumerate().skip(p.fit_runs) {
@@ -216,20 +220,22 @@ fn choose_frames(
             }
             let r = residual(p, &g, k);
             let e: f64 = r.iter().map(|e| e * e).sum();
-            let better = if confirm {
+            let better = if at_rest {
                 confirmed_held_out(b.0, e, effective_samples(&[&r]), HELDOUT_LR)
             } else {
                 e < b.0
             };
             if better {
-                *b = (e, d);
+                *b = (e, d, at_rest);
             }
         }
     }
     p.frames = best.iter().map(|b| b.1).collect();
+    p.at_rest = best.iter().map(|b| b.2).collect();
     let any = p.frames.iter().any(|d| *d != 0.0);
     if !any {
         p.frames.clear();
+        p.at_rest.clear();
         (p.states, p.shifts, p.untaken) = given;
     }
     Ok(any)
@@ -361,8 +367,12 @@ fn settle_rests(p: &mut Problem, trial: &[Shaped], rows: &Rows) -> Result<Fitted
     for k in p.fit_runs..n {
         // A run read with its rest where the first fit run's is rests as that run did, in its
         // state: what differs at rest is a torque zero (the rest rule, within the loop).
-        let state =
-            (p.frame(k) != 0.0 && p.rest_frames.get(k) == Some(&p.frame(k))).then(|| states[0]);
+        let state = p
+            .at_rest
+            .get(k)
+            .copied()
+            .unwrap_or(false)
+            .then(|| states[0]);
         (states[k], shifts[k]) = at_rest(p, &s, &f, hyst, k, rests[k], state);
         shifts[k] -= missed;
     }
