@@ -694,7 +694,7 @@ mod tests {
         );
     }
 
-    /// The same 40 rows, laid out as a comma-separated file with a plain header.
+    /// The 40 rows (t, φ, τ) every layout of the test below writes.
     fn rows() -> Vec<[f64; 3]> {
         (0..40)
             .map(|i| {
