@@ -806,6 +806,40 @@ fn measured_spring_3_at_3_nm_scored_on_its_earlier_test_keeps_the_hysteresis_tha
 }
 
 #[test]
+fn measured_spring_2_at_4_nm_scored_on_its_earlier_test_is_a_slipping_loop_on_a_spring_that_never_softens()
+ {
+    // Fitted on the second test, scored on the first. Spring 2's loop at 4 N·m is a
+    // parallelogram: branches at about 2100 N·m/rad, and near each torque peak the deflection
+    // slides 3–4 mrad at nearly constant torque (a clamp that slips). The first test starts
+    // 2.3 mrad from where the second rests, where the slip left it. With the spring's k free
+    // beside the stops, the search's fits took k = −7 000 to −21 700 N·m/rad against stops
+    // that summed to 2 800 N·m/rad more: within the fit test's range the widest stops act as
+    // a stiffness, beyond it the torque falls as the spring is wound further. The first test
+    // goes 1.5 mrad further; the loop lowered the validation error by 65 % but not the
+    // held-out error, and nothing was named (2.448 N·m held out against 3.505 before).
+    // The outside review's baseline (rest tare, 11 play operators:
+    // `SWAP=1 python3 scripts/springs_baseline.py`) gets 0.512 N·m.
+    let Some(dir) = springs() else { return };
+    let v = identify_spring(
+        &[&dir.join("kt-4-5-23-2-27022023-173037.csv")],
+        &dir.join("kt-4-4-22-2-27022023-172928.csv"),
+        "spring2-4nm-swapped.json",
+    );
+    let (before, after) = (rmse(&v, "before"), rmse(&v, "after"));
+    assert!((3.0..4.0).contains(&before), "before {before}");
+    assert!(after < 0.512, "held-out RMSE {before} → {after}");
+    assert_eq!(names(&v), ["hysteresis"]);
+    let k = v["base"]["after"]["stiffness_nm_per_rad"].as_f64().unwrap();
+    assert!(k >= 0.0, "k = {k} N·m/rad");
+    // The loop holds the first test's rest: its state read there, no torque zero taken.
+    let t = &v["tare"][1];
+    let lam = t["loop_state"].as_f64().expect("a state of the loop");
+    assert!(lam.abs() < 1.0, "{t}");
+    let zero = t["torque_zero"].as_f64().unwrap();
+    assert!(zero.abs() < 0.05, "{t}");
+}
+
+#[test]
 fn measured_spring_2_read_in_its_raw_frame_is_fitted_by_the_restoring_loop_beside_a_torque_offset_and_by_default_as_the_linear_spring()
  {
     // Spring 2 at 2 N·m is read −9.6 to −7.2 mrad from its encoder's zero (never re-zeroed
