@@ -602,6 +602,13 @@ fn against_first(t: &Tare) -> String {
             "rest {} N·m off the first file's, within the loop it traced there: friction may hold the spring there, part of this may be load",
             sig(t.rest_shift_nm)
         )
+    } else if t.loop_state.is_some_and(|lam| lam.abs() < 1.0) {
+        // The first file never passed there unloaded, but the fitted loop (its widest stops)
+        // reaches that rest: a state it holds, not a zero.
+        format!(
+            "rest {} N·m off the first file's as a linear spring reads it, outside the loop the first file traced there, but within the fitted loop's reach",
+            sig(t.rest_shift_nm)
+        )
     } else {
         format!(
             "rest {} N·m off the first file's, outside its loop there: a zero moved",
