@@ -567,9 +567,17 @@ fn noise_line(res: &Identified) -> String {
     )
 }
 
+/// Whether the rests were read as states of a named loop: under the loop-state rule a model
+/// without `hysteresis` has no state to set (every state 0), and its rests are read by the
+/// rest rule.
+fn looped(res: &Identified) -> bool {
+    res.effects.iter().any(|e| e.effect == Effect::Hysteresis)
+}
+
 /// How a file's rest compares with the first file's, and what the rest was read as.
-fn zeros_why(t: &Tare) -> String {
-    let mut against = against_first(t);
+/// `looped`: a loop (`hysteresis`) was named, so the rests were read as its states.
+fn zeros_why(t: &Tare, looped: bool) -> String {
+    let mut against = against_first(t, looped);
     if let Some(file) = &t.read_after {
         against.push_str(&format!(
             "; its encoder zeroed at its start, read from where {file} ended unloaded"
@@ -586,7 +594,7 @@ fn zeros_why(t: &Tare) -> String {
             sig(z)
         ));
     }
-    match t.loop_state {
+    match t.loop_state.filter(|_| looped) {
         Some(lam) => format!(
             "{against}; read as a state of the loop: its stops start at {lam:+.2} of their half-widths"
         ),
@@ -594,7 +602,7 @@ fn zeros_why(t: &Tare) -> String {
     }
 }
 
-fn against_first(t: &Tare) -> String {
+fn against_first(t: &Tare, looped: bool) -> String {
     if t.rest_shift_nm == 0.0 {
         "the reference".into()
     } else if t.within_loop {
@@ -602,7 +610,7 @@ fn against_first(t: &Tare) -> String {
             "rest {} N·m off the first file's, within the loop it traced there: friction may hold the spring there, part of this may be load",
             sig(t.rest_shift_nm)
         )
-    } else if t.loop_state.is_some_and(|lam| lam.abs() < 1.0) {
+    } else if looped && t.loop_state.is_some_and(|lam| lam.abs() < 1.0) {
         // The first file never passed there unloaded, but the fitted loop (its widest stops)
         // reaches that rest: a state it holds, not a zero.
         format!(
@@ -849,7 +857,7 @@ fn print_summary(res: &Identified, notes: &[String]) {
             t.from_s,
             sig(t.torque_zero),
             sig(t.deflection_zero),
-            zeros_why(t)
+            zeros_why(t, looped(res))
         );
     }
     if let Some(note) = &res.tare_note {
@@ -934,7 +942,7 @@ fn markdown(
                 t.window_s,
                 sig(t.torque_zero),
                 sig(t.deflection_zero),
-                zeros_why(t)
+                zeros_why(t, looped(res))
             ));
         }
         s.push_str(&format!(
