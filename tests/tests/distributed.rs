@@ -622,8 +622,10 @@ fn bench_latency_and_throughput_report_consistent_figures() {
         observed * 100 >= (sent * 5 / 4) * 95,
         "{observed} observed: {v}"
     );
-    // The sweep: a board message of the example's four joints, 1 KiB, 64 KiB; moving 64 KiB
-    // takes longer than a sample.
+    // The sweep: a board message of the example's four joints, 1 KiB, 64 KiB, sent in turns
+    // of ten (so the shared machine's slow spells fall on each size alike); moving 64 KiB
+    // takes longer than the board message. (Against the sample's figure above it need not:
+    // that was timed earlier, in another spell — CI once saw 278 µs against 305.)
     let sweep = v["sweep"].as_array().unwrap();
     let sizes: Vec<u64> = sweep
         .iter()
@@ -635,10 +637,12 @@ fn bench_latency_and_throughput_report_consistent_figures() {
         8 + 2 + 4 * 68,
         "a board message of four joints: {v}"
     );
-    let big = sweep[2]["zenoh_rtt_us"]["p50"].as_u64().unwrap();
+    let p50 = |i: usize| sweep[i]["zenoh_rtt_us"]["p50"].as_u64().unwrap();
     assert!(
-        big >= rtt50,
-        "64 KiB p50 {big} µs against a sample's {rtt50} µs: {v}"
+        p50(2) >= p50(0),
+        "64 KiB p50 {} µs against a board message's {} µs: {v}",
+        p50(2),
+        p50(0)
     );
 
     // Throughput: 8 joints on one board, 2 s.

@@ -84,7 +84,7 @@ struct LatencyArgs {
     pings: usize,
     /// Also time raw round trips of other payload sizes — a board message of the config's
     /// joints (kind 9, what one board sends per tick), 1 KiB, 64 KiB — as the peers' tables do
-    /// (dora, zenoh's z_ping)
+    /// (dora, zenoh's z_ping); the sizes are sent in turn, --pings of each
     #[arg(long)]
     sweep: bool,
     /// Print one JSON object instead of the table
@@ -259,14 +259,27 @@ struct Trips {
     one_way: Vec<u64>,
 }
 
-/// Raw round trips between two Zenoh sessions on loopback, blocking API, `pings` timed: back
-/// to back, or with `pace` each started on its own tick (`start + i·pace`).
+/// Raw round trips between two Zenoh sessions on loopback, blocking API, `pings` timed per
+/// payload: back to back, or with `pace` each started on its own tick (`start + i·pace`).
+/// Several payloads are sent in turn (ping i carries `payloads[i % n]`), so every size is
+/// timed under the same load and the sizes' figures compare; one [`Trips`] per payload, in
+/// order. The payloads' lengths must differ (the echo side tells them apart by length).
 fn zenoh_rtt(
     cfg: &RigConfig,
     pings: usize,
-    payload: Vec<u8>,
+    payloads: &[Vec<u8>],
     pace: Option<Duration>,
-) -> Result<Trips, CliError> {
+) -> Result<Vec<Trips>, CliError> {
+    let n = payloads.len();
+    let mut lengths: Vec<usize> = payloads.iter().map(Vec::len).collect();
+    lengths.sort_unstable();
+    lengths.dedup();
+    if n == 0 || lengths.len() != n {
+        return Err(CliError::Invalid(format!(
+            "round trips: {n} payloads, {} distinct lengths (each payload needs its own length)",
+            lengths.len()
+        )));
+    }
     // Plain TCP on loopback between two bare sessions: the transport's own figure.
     let hub = free_loopback_endpoint(false)?;
     let bare = rig_config::ZenohConfig {
@@ -295,9 +308,18 @@ fn zenoh_rtt(
         .congestion_control(zenoh::qos::CongestionControl::Block)
         .wait()
         .map_err(zerr)?;
-    // Every ping's one-way time, read where the rig's estimator reads its samples' (the
-    // callback's start against the Zenoh timestamp), the warm-up ones first.
-    let one_way = Arc::new(std::sync::Mutex::new(Vec::with_capacity(pings + 600)));
+    // Every ping's one-way time with its payload's length, read where the rig's estimator
+    // reads its samples' (the callback's start against the Zenoh timestamp), the warm-up ones
+    // first.
+    const WARM_UP: usize = 500;
+    // Pings of one payload in a row before the next payload's. Ten in a row: this shared
+    // machine flips between a fast and a slow state every few to hundred milliseconds (block
+    // medians of 55–60 µs or about 1 ms, 2026-12-02), so each size must see both alike;
+    // one at a time would time a small ping in the wake of a large one.
+    const BLOCK: usize = 10;
+    let one_way = Arc::new(std::sync::Mutex::new(Vec::with_capacity(
+        pings * n + WARM_UP + 100,
+    )));
     let arrivals = one_way.clone();
     let _echo = b
         .declare_subscriber(ping_key.clone())
@@ -305,7 +327,7 @@ fn zenoh_rtt(
             let now = now_ns();
             let _ = pong.put(s.payload().clone()).wait();
             if let (Some(t), Ok(mut v)) = (published_ns(&s), arrivals.lock()) {
-                v.push(now.saturating_sub(t) / 1000);
+                v.push((s.payload().len(), now.saturating_sub(t) / 1000));
             }
         })
         .wait()
@@ -319,7 +341,7 @@ fn zenoh_rtt(
     // Until the first echo comes back the peers are not linked yet.
     let linked = Instant::now();
     loop {
-        ping.put(payload.clone()).wait().map_err(zerr)?;
+        ping.put(payloads[0].clone()).wait().map_err(zerr)?;
         if replies
             .recv_timeout(Duration::from_millis(50))
             .map_err(zerr)?
@@ -334,9 +356,19 @@ fn zenoh_rtt(
         }
     }
     while replies.try_recv().map_err(zerr)?.is_some() {}
-    let mut rtt = Vec::with_capacity(pings);
+    // The order of the pings: each payload's in blocks of BLOCK, the payloads in turn, the
+    // warm-up first (untimed), then `pings` of each timed.
+    let blocks = |each: usize, timed: bool| {
+        (0..each.div_ceil(BLOCK)).flat_map(move |r| {
+            (0..n).flat_map(move |which| {
+                std::iter::repeat_n((which, timed), BLOCK.min(each - r * BLOCK))
+            })
+        })
+    };
+    let plan = blocks(WARM_UP.div_ceil(n), false).chain(blocks(pings, true));
+    let mut rtt = vec![Vec::with_capacity(pings); n];
     let start = Instant::now();
-    for i in 0..pings + 500 {
+    for (i, (which, timed)) in plan.enumerate() {
         if let Some(period) = pace {
             let due = start + period * i as u32;
             if let Some(wait) = due.checked_duration_since(Instant::now()) {
@@ -344,9 +376,9 @@ fn zenoh_rtt(
             }
         }
         let t0 = Instant::now();
-        ping.put(payload.clone()).wait().map_err(zerr)?;
+        ping.put(payloads[which].clone()).wait().map_err(zerr)?;
         match replies.recv_timeout(Duration::from_secs(1)).map_err(zerr)? {
-            Some(_) if i >= 500 => rtt.push(t0.elapsed().as_micros() as u64),
+            Some(_) if timed => rtt[which].push(t0.elapsed().as_micros() as u64),
             Some(_) => {}
             None => {
                 return Err(CliError::Unsupported(
@@ -358,12 +390,21 @@ fn zenoh_rtt(
     drop(ping);
     let _ = a.close().wait();
     let _ = b.close().wait();
-    // Each timed ping had its echo, so the last `pings` arrivals are the timed ones.
-    let one_way = one_way
-        .lock()
-        .map(|v| v[v.len().saturating_sub(pings)..].to_vec())
-        .unwrap_or_default();
-    Ok(Trips { rtt, one_way })
+    // Each timed ping had its echo, so the last `pings · n` arrivals are the timed ones.
+    let arrived = one_way.lock().map(|v| v.clone()).unwrap_or_default();
+    let timed = &arrived[arrived.len().saturating_sub(pings * n)..];
+    Ok(payloads
+        .iter()
+        .zip(rtt)
+        .map(|(p, rtt)| Trips {
+            rtt,
+            one_way: timed
+                .iter()
+                .filter(|(len, _)| *len == p.len())
+                .map(|(_, us)| *us)
+                .collect(),
+        })
+        .collect())
 }
 
 /// What a rig run produced.
@@ -523,18 +564,31 @@ fn latency(a: &LatencyArgs) -> Result<(), CliError> {
         cfg.rate_hz,
         duration.as_secs_f64()
     );
-    let back_to_back = zenoh_rtt(&cfg, a.pings, payload.clone(), None)?;
+    let one = |trips: Vec<Trips>| {
+        trips
+            .into_iter()
+            .next()
+            .ok_or_else(|| CliError::Invalid("round trips: none timed".into()))
+    };
+    let back_to_back = one(zenoh_rtt(
+        &cfg,
+        a.pings,
+        std::slice::from_ref(&payload),
+        None,
+    )?)?;
     // The same round trips one per tick of the rig's rate: both sessions sleep between
     // messages, as the agents and the estimator host do.
     let tick = Duration::from_secs_f64(1.0 / cfg.rate_hz);
-    let paced = zenoh_rtt(&cfg, a.pings, payload, Some(tick))?;
+    let paced = one(zenoh_rtt(&cfg, a.pings, &[payload], Some(tick))?)?;
     let mut sweep = Vec::new();
     if a.sweep {
-        for bytes in [board, vec![0x5a; 1024], vec![0x5a; 64 * 1024]] {
-            let size = bytes.len();
-            let trips = zenoh_rtt(&cfg, a.pings, bytes, None)?;
+        // The sizes in turn in one session pair, so a load that comes and goes on the machine
+        // falls on each size alike.
+        let sizes = [board, vec![0x5a; 1024], vec![0x5a; 64 * 1024]];
+        let trips = zenoh_rtt(&cfg, a.pings, &sizes, None)?;
+        for (bytes, trips) in sizes.iter().zip(trips) {
             sweep.push(SweepPoint {
-                payload_bytes: size,
+                payload_bytes: bytes.len(),
                 zenoh_rtt_us: LatencySummary::of(trips.rtt),
             });
         }
