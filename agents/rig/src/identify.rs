@@ -567,17 +567,10 @@ fn noise_line(res: &Identified) -> String {
     )
 }
 
-/// Whether the rests were read as states of a named loop: under the loop-state rule a model
-/// without `hysteresis` has no state to set (every state 0), and its rests are read by the
-/// rest rule.
-fn looped(res: &Identified) -> bool {
-    res.effects.iter().any(|e| e.effect == Effect::Hysteresis)
-}
-
-/// How a file's rest compares with the first file's, and what the rest was read as.
-/// `looped`: a loop (`hysteresis`) was named, so the rests were read as its states.
-fn zeros_why(t: &Tare, looped: bool) -> String {
-    let mut against = against_first(t, looped);
+/// How a file's rest compares with the first file's, and what the rest was read as (a state
+/// of the loop where the model has one: `Tare::loop_state`).
+fn zeros_why(t: &Tare) -> String {
+    let mut against = against_first(t);
     if let Some(file) = &t.read_after {
         against.push_str(&format!(
             "; its encoder zeroed at its start, read from where {file} ended unloaded"
@@ -594,7 +587,7 @@ fn zeros_why(t: &Tare, looped: bool) -> String {
             sig(z)
         ));
     }
-    match t.loop_state.filter(|_| looped) {
+    match t.loop_state {
         Some(lam) => format!(
             "{against}; read as a state of the loop: its stops start at {lam:+.2} of their half-widths"
         ),
@@ -602,7 +595,7 @@ fn zeros_why(t: &Tare, looped: bool) -> String {
     }
 }
 
-fn against_first(t: &Tare, looped: bool) -> String {
+fn against_first(t: &Tare) -> String {
     if t.rest_shift_nm == 0.0 {
         "the reference".into()
     } else if t.within_loop {
@@ -610,7 +603,7 @@ fn against_first(t: &Tare, looped: bool) -> String {
             "rest {} N·m off the first file's, within the loop it traced there: friction may hold the spring there, part of this may be load",
             sig(t.rest_shift_nm)
         )
-    } else if looped && t.loop_state.is_some_and(|lam| lam.abs() < 1.0) {
+    } else if t.loop_state.is_some_and(|lam| lam.abs() < 1.0) {
         // The first file never passed there unloaded, but the fitted loop (its widest stops)
         // reaches that rest: a state it holds, not a zero.
         format!(
@@ -857,7 +850,7 @@ fn print_summary(res: &Identified, notes: &[String]) {
             t.from_s,
             sig(t.torque_zero),
             sig(t.deflection_zero),
-            zeros_why(t, looped(res))
+            zeros_why(t)
         );
     }
     if let Some(note) = &res.tare_note {
@@ -942,7 +935,7 @@ fn markdown(
                 t.window_s,
                 sig(t.torque_zero),
                 sig(t.deflection_zero),
-                zeros_why(t, looped(res))
+                zeros_why(t)
             ));
         }
         s.push_str(&format!(

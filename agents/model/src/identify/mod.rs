@@ -695,7 +695,12 @@ pub fn identify(
     }
     let sig = p.signals(Transform::of(&chosen));
     if let Some(states) = p.states.as_ref().filter(|_| p.loop_rests.is_some()) {
-        // What the rule took as each run's zeros, and the state it read at rest.
+        // What the rule took as each run's zeros, and the state it read at rest: only where
+        // the model has a loop (declared, or named), for without one every state is 0 and
+        // means nothing.
+        let has_loop = (opts.model.declares().iter())
+            .chain(chosen.iter().map(|c| &c.effect))
+            .any(|e| *e == Effect::Hysteresis);
         for (k, t) in tare.iter_mut().enumerate() {
             t.torque_zero = p.shifts[k];
             // A held-out run read as measured after all (`states::settle`) was not read
@@ -703,7 +708,7 @@ pub fn identify(
             t.deflection_zero = -(frame[k] + p.frame(k));
             t.read_after = read_after[k].clone().filter(|_| p.frame(k) == 0.0);
             t.frame_at_rest = p.at_rest.get(k).copied().unwrap_or(false);
-            t.loop_state = Some(states[k]);
+            t.loop_state = Some(states[k]).filter(|_| has_loop);
             t.zero_not_taken = p.untaken.get(k).copied().filter(|d| *d != 0.0);
         }
     }

@@ -466,7 +466,13 @@ mod tests {
     /// library's), each started at `lam` of its half-width. 200 Hz, 5 s at rest at `x_rest`,
     /// then a decaying two-tone swing about it; a little deterministic noise on the torque.
     fn spring(name: &str, lam: f64, x_rest: f64, phase: f64) -> Run {
-        let (k, stops) = (20.0, [(0.004, 0.6), (0.01, 0.8), (0.02, 0.5)]);
+        let stops = [(0.004, 0.6), (0.01, 0.8), (0.02, 0.5)];
+        spring_with(name, lam, x_rest, phase, &stops)
+    }
+
+    /// [`spring`] with its stops given (half-width, weight): none is a spring without a loop.
+    fn spring_with(name: &str, lam: f64, x_rest: f64, phase: f64, stops: &[(f64, f64)]) -> Run {
+        let k = 20.0;
         let t: Vec<f64> = (0..6000).map(|i| i as f64 / 200.0).collect();
         let phi: Vec<f64> = t
             .iter()
@@ -483,7 +489,7 @@ mod tests {
             .enumerate()
             .map(|(i, &x)| {
                 let mut h = 0.0;
-                for (sj, (r, w)) in s.iter_mut().zip(stops) {
+                for (sj, &(r, w)) in s.iter_mut().zip(stops) {
                     *sj = (*sj + x - prev).clamp(-r, r);
                     h += w * *sj;
                 }
@@ -530,6 +536,32 @@ mod tests {
             by_state.after.rmse,
             by_rest.after.rmse
         );
+    }
+
+    #[test]
+    fn a_spring_without_a_loop_has_no_state_of_a_loop_read_at_its_rests() {
+        // k·x alone, both tests at rest at the same angle: no loop is named, so neither rest is
+        // read as a loop's state (the rule reads them, every state 0; the report must not say
+        // "a state of the loop" where the model has none).
+        let fit = [spring_with("fit", 0.0, 0.0, 0.0, &[])];
+        let held = [spring_with("held", 0.0, 0.0, 1.0, &[])];
+        let res = identify(&fit, Holdout::Runs(&held), &linear(true), &mut |_, _| {}).unwrap();
+        assert!(res.effects.is_empty(), "{:?}", res.effects);
+        assert_eq!(res.tare.len(), 2);
+        assert!(
+            res.tare.iter().all(|t| t.loop_state.is_none()),
+            "{:?}",
+            res.tare
+        );
+        // With the loop the same rests are read as its states (the test above).
+        let looped = identify(
+            &[spring("fit", 0.0, 0.0, 0.0)],
+            Holdout::Runs(&[spring("held", 0.0, 0.0, 1.0)]),
+            &linear(true),
+            &mut |_, _| {},
+        )
+        .unwrap();
+        assert!(looped.tare.iter().all(|t| t.loop_state.is_some()));
     }
 
     #[test]
