@@ -261,9 +261,9 @@ struct Trips {
 
 /// Raw round trips between two Zenoh sessions on loopback, blocking API, `pings` timed per
 /// payload: back to back, or with `pace` each started on its own tick (`start + i·pace`).
-/// Several payloads are sent in turn (ping i carries `payloads[i % n]`), so every size is
-/// timed under the same load and the sizes' figures compare; one [`Trips`] per payload, in
-/// order. The payloads' lengths must differ (the echo side tells them apart by length).
+/// Several payloads are sent in turn, ten pings of each at a time, so every size is timed
+/// under the same load and the sizes' figures compare; one [`Trips`] per payload, in order.
+/// The payloads' lengths must differ (the echo side tells them apart by length).
 fn zenoh_rtt(
     cfg: &RigConfig,
     pings: usize,

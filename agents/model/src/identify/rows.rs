@@ -44,6 +44,7 @@ pub struct Tare {
     /// The state of the loop at rest (the fraction of each stop's half-width its operators
     /// start from) when the rest is read as a state of the loop ([`super::states`]): then the
     /// zeros above are what the loop cannot hold (torque) and the frame's shift (deflection).
+    /// `None` under the rest rule, and where the model has no loop (no state to read).
     pub loop_state: Option<f64>,
     /// The file this run was read after, under the same rule: its encoder zeroed at its start
     /// where that file left the spring, it is read from where that file ended unloaded
