@@ -6,7 +6,8 @@
 #                 with two tests (in the order of their test ids)
 #   identify NAME ARGS…  `rig identify --model linear` on the data README's columns, the
 #                 report at $out/NAME.json; says so and returns 1 when it fails
-#                 (MODEL=restoring: paper B's restoring model, `rig identify`'s default for a joint)
+#                 (MODEL=restoring: paper B's restoring model, `rig identify`'s default for a joint;
+#                 REST_TARE=1: each rest taken for the zeros, `--rest-tare`)
 source "$(dirname "${BASH_SOURCE[0]}")/rig-binary.sh"
 data="${1:-$here/../shared/data/sea-torsion-springs}"
 out="${2:-${TMPDIR:-/tmp}/$out_default}"
@@ -31,7 +32,9 @@ each_pair() {
 identify() {
   local name="$1"
   shift
+  local rest=()
+  if [ -n "${REST_TARE:-}" ]; then rest=(--rest-tare); fi
   "$rig" identify --model "${MODEL:-linear}" --columns t=time,phi=displacement:deg,tau=torque_out \
-    "$@" --report "$out/$name.json" >/dev/null 2>"$out/$name.log" \
+    "$@" "${rest[@]}" --report "$out/$name.json" >/dev/null 2>"$out/$name.log" \
     || { echo "$name: failed, see $out/$name.log" >&2; return 1; }
 }
