@@ -117,6 +117,7 @@ def run(path, r, jump_frac):
     m = motion(kind, r, T, (0.1, 0.5), (0.6, 1.5), (0.05, 1.2))
     fine = 10_000
     t_jump = rest + jump_frac * T
+    truth[f"jump_{os.path.basename(path)[:-4]}_s"] = t_jump  # jump_fit_s, jump_ho_s
     lead = 0.5  # a lagging torque reads, at the start, the motion before it
     n_fine = int((T + rest + lead) * fine) + 2
 
