@@ -402,9 +402,7 @@ pub(crate) fn forward(
                 if cand.effect != Effect::Offset {
                     q.restoring = Some(friction_seeded_loop(&q, &sig, &chosen, &cand, &rows.fit)?);
                 }
-                for _ in 0..4 {
-                    q.restoring = Some(refit_restoring(&q, &trial, &rows.fit)?);
-                }
+                refit_loop_for(&mut q, &trial, &rows.fit)?;
                 if cand.effect != Effect::Offset {
                     q.restoring = Some(profile_coefficient(&q, &sig, &chosen, &cand, &rows.fit)?);
                 }
@@ -778,18 +776,8 @@ fn drift_or_step_on_own_loops(
         let mut trial = chosen.to_vec();
         trial.push(c);
         let mut q = p.clone();
-        let mut refitted = true;
-        for _ in 0..4 {
-            progress();
-            match refit_restoring(&q, &trial, &rows.fit) {
-                Ok(curve) => q.restoring = Some(curve),
-                Err(_) => {
-                    refitted = false;
-                    break;
-                }
-            }
-        }
-        if !refitted {
+        progress();
+        if refit_loop_for(&mut q, &trial, &rows.fit).is_err() {
             continue;
         }
         let v = validation_error(&q, &trial, rows)?;
@@ -1286,9 +1274,7 @@ fn torque_twin(
     let mut trial = chosen.to_vec();
     trial.push(twin);
     let mut qt = q.clone();
-    for _ in 0..4 {
-        qt.restoring = Some(refit_restoring(&qt, &trial, &rows.fit).ok()?);
-    }
+    refit_loop_for(&mut qt, &trial, &rows.fit).ok()?;
     let sig = qt.signals(sig_transform(&qt, chosen));
     qt.restoring = Some(profile_coefficient(&qt, &sig, chosen, &twin, &rows.fit).ok()?);
     let mut with_slip = chosen.to_vec();
@@ -1355,6 +1341,15 @@ pub(crate) fn validation_error(
     )
     .ok_or(IdentifyError::Solve)?
     .error_on(&q.tau, &rows.validate))
+}
+
+/// `q`'s loop refitted for `trial` four times: the loop and the effects' coefficients beside
+/// it alternated until they settle.
+fn refit_loop_for(q: &mut Problem, trial: &[Shaped], rows: &[usize]) -> Result<(), IdentifyError> {
+    for _ in 0..4 {
+        q.restoring = Some(refit_restoring(q, trial, rows)?);
+    }
+    Ok(())
 }
 
 /// The transform of `chosen`, with the declared model's slope wherever offsets may want it.
