@@ -52,17 +52,29 @@ def write_run(path, header, rows):
             f.write(",".join([f"{t:.6f}"] + [f"{v:.9e}" for v in values]) + "\n")
 
 
-def write_case(out, rng, truth, run):
+def write_case(out, rng, truth, run, clean):
     """The fit and held-out runs of a case into OUT/fit.csv and OUT/ho.csv, each from its own
     draw of `rng`, with a jump part-way at its own instant (the same one with SAMEJUMP=1):
     `run(path, rng, jump_fraction)` writes one and returns its motion's name; the case's truth
-    goes to OUT/truth.txt."""
+    goes to OUT/truth.txt.
+
+    With TWIN=1 the case's clean twin too, into OUT/twin/: `clean()` takes the effect out of
+    the plant, and the same two runs are written again from the same draws (the same plant,
+    motion, sample instants and noise), so that the twin's held-out error after identification
+    is the floor the case's own can reach."""
     jf = rng.uniform(0.3, 0.7)
     jh = jf if os.environ.get("SAMEJUMP") else rng.uniform(0.3, 0.7)
-    truth["fit_motion"] = run(os.path.join(out, "fit.csv"), random.Random(rng.random()), jf)
-    truth["ho_motion"] = run(os.path.join(out, "ho.csv"), random.Random(rng.random()), jh)
+    seed_fit, seed_ho = rng.random(), rng.random()
+    truth["fit_motion"] = run(os.path.join(out, "fit.csv"), random.Random(seed_fit), jf)
+    truth["ho_motion"] = run(os.path.join(out, "ho.csv"), random.Random(seed_ho), jh)
     with open(os.path.join(out, "truth.txt"), "w") as f:
         f.write(repr(truth) + "\n")
+    if os.environ.get("TWIN") == "1":
+        twin = os.path.join(out, "twin")
+        os.makedirs(twin, exist_ok=True)
+        clean()
+        run(os.path.join(twin, "fit.csv"), random.Random(seed_fit), jf)
+        run(os.path.join(twin, "ho.csv"), random.Random(seed_ho), jh)
 
 
 def case_args(script, effects):

@@ -122,4 +122,5 @@ def run(path, r, jump_frac):
     return kind
 
 
-write_case(out, rng, truth, run)
+# The clean twin (TWIN=1): the same plant, motions and noise without the effect.
+write_case(out, rng, truth, run, clean=lambda: globals().update(effect="none"))
