@@ -430,13 +430,18 @@ fn lever_generator(effect: &str, seed: u32) -> (Value, String) {
 fn link_generator_with_twin(effect: &str, seed: u32) -> (Value, String, Value) {
     let (v, truth) = generated("link-generator.py", "link", effect, seed, &[("TWIN", "1")]);
     let twin = scratch(&format!("link-generator-{effect}-{seed}")).join("twin");
+    (v, truth, identified_case("link", &twin))
+}
+
+/// `rig identify --model <model>` on a generated case's `fit.csv` with `ho.csv` held out: the
+/// report.
+fn identified_case(model: &str, dir: &Path) -> Value {
     let mut c = Command::new(bin("rig"));
-    c.args(["identify", "--model", "link", "--data"])
-        .arg(twin.join("fit.csv"))
+    c.args(["identify", "--model", model, "--data"])
+        .arg(dir.join("fit.csv"))
         .arg("--holdout")
-        .arg(twin.join("ho.csv"));
-    let t = report_of(c, &twin.join("r.json"));
-    (v, truth, t)
+        .arg(dir.join("ho.csv"));
+    report_of(c, &dir.join("r.json"))
 }
 
 /// A generator script's case (`scripts/<script> OUTDIR EFFECT SEED`, with `env`), identified
@@ -465,12 +470,7 @@ fn generated(
         "{}",
         String::from_utf8_lossy(&out.stderr)
     );
-    let mut c = Command::new(bin("rig"));
-    c.args(["identify", "--model", model, "--data"])
-        .arg(dir.join("fit.csv"))
-        .arg("--holdout")
-        .arg(dir.join("ho.csv"));
-    let v = report_of(c, &dir.join("r.json"));
+    let v = identified_case(model, &dir);
     (v, std::fs::read_to_string(dir.join("truth.txt")).unwrap())
 }
 

@@ -305,8 +305,9 @@ pub(crate) const REPLACES_INERTIA: f64 = -1e300;
 /// where it is once it is modelled (a torque lag δ made it look I − δ·N lighter; modelled, it
 /// comes back), so a lag whose fit leaves less than a quarter of the current model's inertia,
 /// or a model that sees no inertia at all, is no evidence of a lag.
-/// A lag that gives a negative inertia back its place ([`gives_the_inertia_back`]) is the
-/// exception: it is evidence of a lag, not a stand-in for the inertia.
+/// A torque lag that gives a link held at zero inertia (its free fit negative) a positive one
+/// ([`gives_the_inertia_back`]) is the exception: it is evidence of a lag, not a stand-in for
+/// the inertia.
 fn takes_the_inertias_place(model: Declared, c: &Shaped, now: &Fitted, with: &Fitted) -> bool {
     if model != Declared::Link || c.effect != Effect::SensorDelay {
         return false;
@@ -320,9 +321,10 @@ fn takes_the_inertias_place(model: Declared, c: &Shaped, now: &Fitted, with: &Fi
 
 /// On the link equation a lag δ > 0 of the torque path makes the link look I − δ·N lighter
 /// (τ(t − δ) ≈ (I − δ·N)·q̈ + N·q̇ − δ·I·q⃛). On a link whose damping outweighs its inertia
-/// over the lag (δ·N > I) the model without the lag fits a negative inertia, which no link
-/// has, as a loop run backwards on a joint model gives energy back, which no passive part
-/// does. A torque lag whose fit gives the link a positive inertia again is then the lag's own
+/// over the lag (δ·N > I) the model without the lag would fit a negative inertia, which no
+/// link has, as a loop run backwards on a joint model gives energy back, which no passive part
+/// does; held ≥ 0 ([`fit`]), it sits at zero. A torque lag whose fit gives the link a positive
+/// inertia again is then the lag's own
 /// signature: like the backwards loop's lag, it need only pay by the criterion, not also by
 /// `min_gain` (a lag of the angle makes the link look heavier, I + |δ|·N, and cannot do
 /// this). Measured on the fourth generator's link of I = 0.006 kg·m², N = 0.33 N·m·s/rad
@@ -623,8 +625,8 @@ pub(crate) fn forward(
                 (trial, s)
             };
             // The candidate, its validation error, its criterion score, its own
-            // coefficients fitted on the fit rows, and whether it gives a negative inertia
-            // back its place.
+            // coefficients fitted on the fit rows, and whether it gives a link held at zero
+            // inertia a positive one.
             type Judged = (Shaped, f64, f64, Vec<f64>, bool);
             let judge = |c: Shaped, val: f64| -> Result<Judged, IdentifyError> {
                 let (trial, s1) = signals_with(&c);
