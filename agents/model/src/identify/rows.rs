@@ -602,6 +602,18 @@ impl Problem {
         if n == 0 { 0.0 } else { (sum / n as f64).sqrt() }
     }
 
+    /// The speeds |rate| over the fit runs, sorted [rad/s], the rate as in
+    /// [`Self::fit_rate_rms`].
+    pub fn fit_speeds(&self) -> Vec<f64> {
+        let mut speeds: Vec<f64> = (0..self.fit_runs.min(self.rates.len()))
+            .flat_map(|k| self.weak_sign_rate(k).unwrap_or(&self.rates[k].0).iter())
+            .map(|v| v.abs())
+            .filter(|v| v.is_finite())
+            .collect();
+        speeds.sort_by(f64::total_cmp);
+        speeds
+    }
+
     /// Contiguous stretches of `rows` within runs, as ranges into `rows`.
     pub fn stretches(&self, rows: &[usize]) -> Vec<(usize, usize)> {
         let run_of = |i: usize| self.bounds.iter().position(|&(a, b)| i >= a && i < b);
