@@ -106,6 +106,16 @@ fn param(v: &Value, effect: &str, p: &str) -> f64 {
         .unwrap_or_else(|| panic!("{effect}.{p} not in {v}"))
 }
 
+/// The held-out RMSE after is at most `share` of the declared model's before.
+fn held_out_at_most(v: &Value, share: f64) {
+    assert!(
+        rmse(v, "after") <= share * rmse(v, "before"),
+        "held-out RMSE {} → {}: over {share} of it",
+        rmse(v, "before"),
+        rmse(v, "after")
+    );
+}
+
 /// The effect is named first and the held-out RMSE at least halves.
 fn finds(v: &Value, effect: &str) {
     let n = names(v);
@@ -114,12 +124,7 @@ fn finds(v: &Value, effect: &str) {
         Some(effect),
         "effects {n:?}: {v:#}"
     );
-    assert!(
-        rmse(v, "after") <= 0.5 * rmse(v, "before"),
-        "held-out RMSE {} → {}: not halved",
-        rmse(v, "before"),
-        rmse(v, "after")
-    );
+    held_out_at_most(v, 0.5);
     let gain = v["effects"][0]["gain_rmse"].as_f64().unwrap();
     assert!(
         gain > 0.0,
@@ -137,12 +142,7 @@ fn adds_nothing(v: &Value) {
         names(v)
     );
     assert_eq!(rmse(v, "tared"), rmse(v, "after"));
-    assert!(
-        rmse(v, "after") <= 1.01 * rmse(v, "before"),
-        "held-out RMSE {} → {}",
-        rmse(v, "before"),
-        rmse(v, "after")
-    );
+    held_out_at_most(v, 1.01);
 }
 
 // Declared: paper B's restoring-torque model; plant: the lever with Bouc-Wen hysteresis.
@@ -656,12 +656,7 @@ fn on_a_spring_moved_at_one_speed_damping_is_not_taken_for_dry_friction_built_up
     // near it.
     let (v, _) = generated("third-generator.py", "linear", "viscous", 6, &[]);
     assert_eq!(names(&v), ["viscous_friction"], "{v:#}");
-    assert!(
-        rmse(&v, "after") <= 0.4 * rmse(&v, "before"),
-        "held-out RMSE {} → {}",
-        rmse(&v, "before"),
-        rmse(&v, "after")
-    );
+    held_out_at_most(&v, 0.4);
 }
 
 #[test]
@@ -676,12 +671,7 @@ fn a_gap_that_a_levers_softening_ends_hide_on_straight_lines_is_found_with_the_l
     let (v, truth) = lever_generator("backlash", 4);
     assert_eq!(names(&v), ["backlash"], "{v:#}");
     assert_eq!(v["envelope"], "softening", "{v:#}");
-    assert!(
-        rmse(&v, "after") <= 0.8 * rmse(&v, "before"),
-        "held-out RMSE {} → {}",
-        rmse(&v, "before"),
-        rmse(&v, "after")
-    );
+    held_out_at_most(&v, 0.8);
     // The generator's gap is in the spring's angle α; near rest α = φ·d_a/(p − d_a) (paper
     // B's lever, p = 31.5 mm, d_a = 9.6 mm + d), so the joint sees a gap of r·(p − d_a)/d_a.
     let d_a = 0.0096 + truth_value(&truth, "d_mm") * 1e-3;

@@ -590,23 +590,26 @@ impl Problem {
         self.sign_rates.get(k).filter(|_| self.weak())
     }
 
-    /// The rms of the rate whose sign is the direction of motion, over the fit runs [rad/s]
-    /// (the weak form's own rates on the link equation).
+    /// Each fit run's rate whose sign is the direction of motion [rad/s] (the weak form's own
+    /// rates on the link equation).
+    fn fit_sign_rates(&self) -> impl Iterator<Item = &Vec<f64>> {
+        (0..self.fit_runs.min(self.rates.len()))
+            .map(|k| self.weak_sign_rate(k).unwrap_or(&self.rates[k].0))
+    }
+
+    /// The rms of [`Self::fit_sign_rates`] over the fit runs [rad/s].
     pub fn fit_rate_rms(&self) -> f64 {
         let (mut sum, mut n) = (0.0, 0usize);
-        for k in 0..self.fit_runs.min(self.rates.len()) {
-            let v = self.weak_sign_rate(k).unwrap_or(&self.rates[k].0);
+        for v in self.fit_sign_rates() {
             sum += v.iter().map(|v| v * v).sum::<f64>();
             n += v.len();
         }
         if n == 0 { 0.0 } else { (sum / n as f64).sqrt() }
     }
 
-    /// The speeds |rate| over the fit runs, sorted [rad/s], the rate as in
-    /// [`Self::fit_rate_rms`].
+    /// The speeds |rate| of [`Self::fit_sign_rates`], sorted [rad/s].
     pub fn fit_speeds(&self) -> Vec<f64> {
-        let mut speeds: Vec<f64> = (0..self.fit_runs.min(self.rates.len()))
-            .flat_map(|k| self.weak_sign_rate(k).unwrap_or(&self.rates[k].0).iter())
+        let mut speeds: Vec<f64> = (self.fit_sign_rates().flatten())
             .map(|v| v.abs())
             .filter(|v| v.is_finite())
             .collect();

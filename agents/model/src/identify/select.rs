@@ -199,11 +199,13 @@ pub(crate) fn candidates(p: &Problem, opts: &Options, dt: f64, duration: f64) ->
                         - speeds.partition_point(|s| *s <= 0.5 * v);
                     within as f64 >= BEND_DWELL * speeds.len() as f64
                 };
+                // Up to 30 % of the rms every speed is tried (the float's last bit aside).
+                let always = 0.3 * rms * (1.0 + 1e-9);
                 let (lo, hi) = (0.01 * rms, (0.3 * rms).max(0.5 * fastest));
                 let n = ((hi / lo).ln() / 1.63f64.ln()).ceil().clamp(7.0, 64.0) as usize + 1;
                 let built = logspace(lo, hi, n)
                     .into_iter()
-                    .filter(|v| *v > still && (*v <= 0.3 * rms * (1.0 + 1e-9) || dwell(*v)));
+                    .filter(|v| *v > still && (*v <= always || dwell(*v)));
                 Ok(each(
                     e,
                     [f64::NAN, FRICTION_HELD].into_iter().chain(built).collect(),
