@@ -13,7 +13,7 @@
 # (rig-config/examples/bench.toml is the generator's lever). TWIN=1: each case's clean twin
 # too (the same plant, motions and noise without the effect, scripts/generator_io.py), and
 # the line gives the case's held-out error after over the twin's ("after/twin": 1.00 is as
-# low as the data allow).
+# low as the data allow). FROM=K: seeds K to K+SEEDS−1 (default 0), e.g. seeds never tuned on.
 set -euo pipefail
 source "$(dirname "$0")/rig-binary.sh"
 OUT=$1; S=$2; shift 2
@@ -23,7 +23,7 @@ gen=$here/scripts/third-generator.py; model=linear
 cfg=()
 [ -n "${CONFIG:-}" ] && { export PIVOT=1; cfg=(--config "$CONFIG"); }
 EFF=${*:-$(python3 "$gen" --effects)}
-for e in $EFF; do for s in $(seq 0 $((S-1))); do
+for e in $EFF; do for s in $(seq ${FROM:-0} $((${FROM:-0}+S-1))); do
   d=$OUT/$e-$s; python3 "$gen" "$d" "$e" "$s"
   if [ -n "${DROP:-}" ]; then
     python3 "$here/scripts/drop-rows.py" "$d" "$d" "$DROP"
