@@ -470,6 +470,12 @@ fn notes(res: &Identified, fit: &[Run], held: &[Run]) -> Vec<String> {
                 " — the bound of the lags searched: the error still falls there, so the lag is not located (the real one may be shorter; on the link equation an encoder's noise pulls it out); `--apply` leaves the rig's timing as it is",
             );
         }
+        if let Some(lr) = d.param(rig_model::identify::NAMED_ON_HELD_OUT) {
+            note.push_str(&format!(
+                " — named on the held-out data's evidence: on the fit data it lowered the validation error by {:.1} % only, under --min-gain, for a lag of the link equation is to first order a change of inertia and shows only where the acceleration changes (the few corners of moves between holds); the held-out data confirmed it (likelihood ratio {lr:.1}, over χ²₁'s 1 % point) and lost more than --min-gain of its error with it, so the error after is not independent of this choice; fit on a motion whose acceleration changes all the time (a chirp, a multi-sine) to name it from the fit data alone",
+                100.0 * d.validation_gain,
+            ));
+        }
         n.push(note);
     }
     for e in &res.effects {

@@ -188,6 +188,12 @@ impl Errors {
 /// (a real lag's optimum lies inside the range). `--apply` does not put such a lag on the rig.
 pub const AT_SEARCH_BOUND: &str = "at_search_bound";
 
+/// A parameter of a link equation's `sensor_delay` whose validation gain on the fit run was
+/// under `min_gain` and which a held-out run confirmed (`select::sparse_lag_held_out`): the
+/// held-out likelihood ratio it passed. The held-out data chose this effect, so the error
+/// after is not independent of the choice.
+pub const NAMED_ON_HELD_OUT: &str = "named_on_held_out_likelihood_ratio";
+
 /// Parameters of a jump (an offset's or a stiffness step's) that lies inside a held-out block
 /// of its run [s]: the times of the fit rows either side. The fit rows cannot place the jump
 /// in between, so it is put at the middle; the held-out error counts the block, though the
@@ -632,6 +638,7 @@ pub fn identify(
         mut refused,
         unconfirmed,
         not_added,
+        by_held_out,
     } = vetted;
     // The smoother was chosen for q̈ alone. A sensor's first-order filter undone on the angle
     // feeds the model q̈ + T·q⃛ too, and the jerk carries the counts' noise through many times
@@ -772,6 +779,9 @@ pub fn identify(
             let mut params = c.params(after.part(k + 1), &sig, &base_coefs);
             if select::at_the_searchs_bound(c, &candidates) {
                 params.push((AT_SEARCH_BOUND, 1.0));
+            }
+            if let Some(lr) = by_held_out.filter(|_| k + 1 == chosen.len()) {
+                params.push((NAMED_ON_HELD_OUT, lr));
             }
             if let Some((from, to)) = select::held_out_block(&sig.t_rel, c, &rows.fit) {
                 params.push((HELD_OUT_BLOCK_FROM, from));

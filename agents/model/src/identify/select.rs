@@ -253,6 +253,8 @@ pub(crate) struct NotAdded {
     pub gain: f64,
     pub score: f64,
     pub why: Option<&'static str>,
+    /// The best shape searched, where the search found one.
+    pub shape: Option<Shaped>,
 }
 
 impl NotAdded {
@@ -265,6 +267,7 @@ impl NotAdded {
             gain,
             score,
             why,
+            shape: None,
         }
     }
 }
@@ -708,11 +711,15 @@ pub(crate) fn forward(
             {
                 per_effect.push(NotAdded {
                     why: Some(RATE_NOISE_WHY),
+                    shape: Some(cand),
                     ..NotAdded::new(*e, gain, sc)
                 });
                 continue;
             }
-            per_effect.push(NotAdded::new(*e, gain, sc));
+            per_effect.push(NotAdded {
+                shape: Some(cand),
+                ..NotAdded::new(*e, gain, sc)
+            });
             if pays {
                 let curve = (!std::ptr::eq(pe, &*p))
                     .then(|| pe.restoring.clone())
@@ -2119,14 +2126,86 @@ pub(crate) struct Vetted {
     pub unconfirmed: Vec<Shaped>,
     /// Candidates never added.
     pub not_added: Vec<NotAdded>,
+    /// The likelihood ratio on the held-out rows of the kept lag named on the held-out run's
+    /// evidence ([`sparse_lag_held_out`]; kept last), if any.
+    pub by_held_out: Option<f64>,
+}
+
+/// On the link equation a lag is to first order a change of inertia: τ(t − δ) ≈
+/// (I − δN)·q̈ + N·q̇ − δI·q⃛ (a filter likewise). Only the jerk term tells it, and a motion
+/// whose acceleration changes seldom — moves between holds, as a servo's, with a trapezoidal
+/// speed — shows that term at its few corners alone: a few per cent of the rows, so its
+/// validation gain stays under `min_gain` over all of them, though the criterion pays for
+/// it. Another motion held out (a chirp, a multi-sine) shows the lag on every row. Measured
+/// on the fourth generator (seeds 8–13, 2026-12-03): four of six torque lags and one of six
+/// angle lags fitted on moves were refused at validation gains of 0.4–4.8 %, and their
+/// held-out errors were 2–4.6 times their clean twins'; the clean twins' best lags gain up to
+/// 4.2 % on validation too, so the bar cannot simply be lowered.
+///
+/// Here, after the held-out check, the best lag the fit run found (its shape and
+/// coefficients fitted on the fit rows alone) is named where no rule of its own refused it,
+/// it lowered the validation error at all, it is not at the bound of the lags searched, and
+/// a held-out run (another recording, not blocks of the fit run) confirms it as strictly as
+/// the check confirms any effect: its likelihood ratio above [`HELDOUT_LR`] and its held-out
+/// RMSE lower by `min_gain`. The criterion on the fit rows is not asked: between the corners
+/// the fit run's residual is slow, its effective samples few, and it refused both torque
+/// filters above (scores −4 and −19). The held-out data then chooses one effect, once, at
+/// 1 %; the report says so ([`super::NAMED_ON_HELD_OUT`]), since the error after is then not
+/// independent of the choice. A lag the fit run placed wrongly is refused there (the same
+/// generator's seed 9, a 14 ms delay found as a 34 ms filter: a likelihood ratio of −80).
+fn sparse_lag_held_out(
+    p: &mut Problem,
+    out: &mut Vetted,
+    last: &Fitted,
+    candidates: &[(Effect, Vec<Shaped>)],
+    rows: &Rows,
+    opts: &Options,
+) -> Result<(), IdentifyError> {
+    if p.model != Declared::Link
+        || p.fit_runs >= p.runs.len()
+        || out.kept.len() >= opts.max_effects
+        || out.kept.iter().any(|c| c.effect == Effect::SensorDelay)
+    {
+        return Ok(());
+    }
+    let Some(k) = out.not_added.iter().position(|n| {
+        n.effect == Effect::SensorDelay
+            && n.why.is_none()
+            && n.gain > 0.0
+            && n.shape
+                .is_some_and(|c| !at_the_searchs_bound(&c, candidates))
+    }) else {
+        return Ok(());
+    };
+    let Some(lag) = out.not_added[k].shape else {
+        return Ok(());
+    };
+    let mut trial = out.kept.clone();
+    trial.push(lag);
+    let (fixed, read) = super::states::settle_both(p, &trial, rows)?;
+    let f = read.unwrap_or(fixed);
+    let (rss0, _) = rss_and_neff(p, last, &rows.held);
+    let (rss1, n_eff) = rss_and_neff(p, &f, &rows.held);
+    let err = f.error_on(&p.tau, &rows.held);
+    let before = out.held_errs.last().copied().unwrap_or(f64::NAN);
+    if confirmed_held_out(rss0, rss1, n_eff, HELDOUT_LR) && err <= (1.0 - opts.min_gain) * before {
+        let n = out.not_added.remove(k);
+        out.kept = trial;
+        out.gains.push(n.gain);
+        out.held_errs.push(err);
+        out.by_held_out = Some(n_eff * (rss0 / rss1).ln());
+    }
+    Ok(())
 }
 
 /// Forward selection, then the held-out check: each chosen effect, in order, must also lower
 /// the held-out error by more than noise explains, and one beside an effect already kept by
 /// `min_gain` as well; one that does not fitted something of the fit data that the held-out
 /// data lacks (or too little of it to name). It is vetoed and the selection runs again without it
-/// (twice at most): the held-out data never chooses an effect, a shape or a coefficient, it
-/// only refuses. With the restoring model each prefix is judged with its loop refitted for it.
+/// (twice at most): the held-out data never chooses a shape or a coefficient, and it chooses
+/// an effect in one case only, the link equation's lag that its fit run shows too sparsely
+/// ([`sparse_lag_held_out`]); else it only refuses. With the restoring model each prefix is
+/// judged with its loop refitted for it.
 /// `declared` is the declared model's fit, its held-out RMSE and its loop.
 pub(crate) fn with_heldout_veto(
     p: &mut Problem,
@@ -2159,6 +2238,7 @@ pub(crate) fn with_heldout_veto(
             refused: vec![],
             unconfirmed: vec![],
             not_added: selection.refused.clone(),
+            by_held_out: None,
         };
         let mut last = base.clone();
         let mut veto = Vec::new();
@@ -2233,6 +2313,7 @@ pub(crate) fn with_heldout_veto(
         if veto.is_empty() || vetoed.len() >= 2 {
             out.refused = refused;
             out.unconfirmed = unconfirmed;
+            sparse_lag_held_out(p, &mut out, &last, candidates, rows, opts)?;
             return Ok(out);
         }
         vetoed.extend(veto);
