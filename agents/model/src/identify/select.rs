@@ -2135,8 +2135,8 @@ pub(crate) struct Vetted {
 /// (I − δN)·q̈ + N·q̇ − δI·q⃛ (a filter likewise). Only the jerk term tells it, and a motion
 /// whose acceleration changes seldom — moves between holds, as a servo's, with a trapezoidal
 /// speed — shows that term at its few corners alone: a few per cent of the rows, so its
-/// validation gain stays under `min_gain` over all of them, though the criterion pays for
-/// it. Another motion held out (a chirp, a multi-sine) shows the lag on every row. Measured
+/// validation gain stays under `min_gain` over all of them. Another motion held out (a
+/// chirp, a multi-sine) shows the lag on every row. Measured
 /// on the fourth generator (seeds 8–13, 2026-12-03): four of six torque lags and one of six
 /// angle lags fitted on moves were refused at validation gains of 0.4–4.8 %, and their
 /// held-out errors were 2–4.6 times their clean twins'; the clean twins' best lags gain up to
@@ -2144,9 +2144,8 @@ pub(crate) struct Vetted {
 ///
 /// Here, after the held-out check, where nothing else was kept, the best lag the fit run
 /// found (its shape and coefficients fitted on the fit rows alone) is named where no rule of
-/// its own refused it,
-/// it lowered the validation error at all, it is not at the bound of the lags searched, and
-/// a held-out run (another recording, not blocks of the fit run) confirms it as strictly as
+/// its own refused it, it lowered the validation error at all, it is not at the bound of the
+/// lags searched, and a held-out run (another recording, not blocks of the fit run) confirms it as strictly as
 /// the check confirms any effect: its likelihood ratio above [`HELDOUT_LR`] and its held-out
 /// RMSE lower by `min_gain`. The criterion on the fit rows is not asked: between the corners
 /// the fit run's residual is slow, its effective samples few, and it refused both torque
