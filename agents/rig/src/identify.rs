@@ -949,6 +949,9 @@ fn markdown(
             sig(res.tared.rmse)
         ));
     }
+    if let Some(note) = res.tare_note.as_ref().filter(|_| res.tare.is_empty()) {
+        s.push_str(&format!("## Tare\n\n{note}.\n\n"));
+    }
     if let Some(line) = softening_line(res) {
         s.push_str(&format!("{line}.\n\n"));
     }

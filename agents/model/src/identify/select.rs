@@ -2184,18 +2184,31 @@ fn sparse_lag_held_out(
     trial.push(lag);
     let (fixed, read) = super::states::settle_both(p, &trial, rows)?;
     let f = read.unwrap_or(fixed);
-    let (rss0, _) = rss_and_neff(p, last, &rows.held);
-    let (rss1, n_eff) = rss_and_neff(p, &f, &rows.held);
-    let err = f.error_on(&p.tau, &rows.held);
-    let before = out.held_errs.last().copied().unwrap_or(f64::NAN);
-    if confirmed_held_out(rss0, rss1, n_eff, HELDOUT_LR) && err <= (1.0 - opts.min_gain) * before {
+    if let Some(lr) = held_out_prefers((p, last), (p, &f), &rows.held, opts.min_gain) {
         let n = out.not_added.remove(k);
         out.kept = trial;
         out.gains.push(n.gain);
-        out.held_errs.push(err);
-        out.by_held_out = Some(n_eff * (rss0 / rss1).ln());
+        out.held_errs.push(f.error_on(&p.tau, &rows.held));
+        out.by_held_out = Some(lr);
     }
     Ok(())
+}
+
+/// Where the held-out rows `held` choose the fit `to` over `from` (each on its own problem), as
+/// strictly as the veto confirms an effect beside another: a likelihood ratio over `to`'s
+/// effective samples above [`HELDOUT_LR`] ([`confirmed_held_out`]) and a held-out RMSE lower by
+/// `min_gain`. Returns that likelihood ratio, for the report to say the held-out data chose.
+pub(crate) fn held_out_prefers(
+    from: (&Problem, &Fitted),
+    to: (&Problem, &Fitted),
+    held: &[usize],
+    min_gain: f64,
+) -> Option<f64> {
+    let (rss0, _) = rss_and_neff(from.0, from.1, held);
+    let (rss1, n_eff) = rss_and_neff(to.0, to.1, held);
+    let lower =
+        to.1.error_on(&to.0.tau, held) <= (1.0 - min_gain) * from.1.error_on(&from.0.tau, held);
+    (confirmed_held_out(rss0, rss1, n_eff, HELDOUT_LR) && lower).then(|| n_eff * (rss0 / rss1).ln())
 }
 
 /// Forward selection, then the held-out check: each chosen effect, in order, must also lower
@@ -2204,7 +2217,8 @@ fn sparse_lag_held_out(
 /// data lacks (or too little of it to name). It is vetoed and the selection runs again without it
 /// (twice at most): the held-out data never chooses a shape or a coefficient, and it chooses
 /// an effect in one case only, the link equation's lag that its fit run shows too sparsely
-/// ([`sparse_lag_held_out`]); else it only refuses. With the restoring model each prefix is
+/// ([`sparse_lag_held_out`]); else it only refuses. (Before the selection it also decides
+/// whether the restoring model's files are tared: [`super::identify`].) With the restoring model each prefix is
 /// judged with its loop refitted for it.
 /// `declared` is the declared model's fit, its held-out RMSE and its loop.
 pub(crate) fn with_heldout_veto(
