@@ -16,9 +16,7 @@
 use super::effects::Shaped;
 use super::model::{Fitted, refit_restoring};
 use super::rows::Problem;
-use super::select::{
-    HELDOUT_LR, Rows, confirmed_held_out, golden_section, rss_and_neff, validation_error,
-};
+use super::select::{Rows, golden_section, held_out_prefers, validation_error};
 use super::states::settle;
 use super::{IdentifyError, Options};
 use crate::hysteresis::Envelope;
@@ -117,7 +115,7 @@ pub(crate) fn soften_beside(
 /// The bend that pays beside the effects `beside`: the best of the grid and its refinement on
 /// the validation rows, which must lower the validation error of what was found (`found`: its
 /// fit and its validation error, straight lines) by `min_gain`, and its held-out error by more
-/// than noise explains: the effects' own held-out check ([`confirmed_held_out`], its power
+/// than noise explains: the effects' own held-out check ([`held_out_prefers`], its power
 /// weighed the same way).
 fn bend_beside(
     p: &Problem,
@@ -157,9 +155,8 @@ fn bend_beside(
     let c = c_for(softer, x_max);
     let mut q = with_envelope(p, Envelope::Softening(c), beside, &rows.fit)?;
     let bent = settle(&mut q, beside, rows)?;
-    let (rss0, _) = rss_and_neff(p, after, &rows.held);
-    let (rss1, n_eff) = rss_and_neff(&q, &bent, &rows.held);
-    if !confirmed_held_out(rss0, rss1, n_eff, HELDOUT_LR) {
+    // No smallest held-out gain: the check's likelihood ratio alone (a confirmed fit is lower).
+    if held_out_prefers((p, after), (&q, &bent), &rows.held, 0.0).is_none() {
         return Ok(None);
     }
     Ok(Some(Softening {

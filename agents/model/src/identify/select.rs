@@ -2145,9 +2145,9 @@ pub(crate) struct Vetted {
 /// Here, after the held-out check, where nothing else was kept, the best lag the fit run
 /// found (its shape and coefficients fitted on the fit rows alone) is named where no rule of
 /// its own refused it, it lowered the validation error at all, it is not at the bound of the
-/// lags searched, and a held-out run (another recording, not blocks of the fit run) confirms it as strictly as
-/// the check confirms any effect: its likelihood ratio above [`HELDOUT_LR`] and its held-out
-/// RMSE lower by `min_gain`. The criterion on the fit rows is not asked: between the corners
+/// lags searched, and a held-out run (another recording, not blocks of the fit run) confirms
+/// it as strictly as the check confirms any effect: its likelihood ratio above [`HELDOUT_LR`]
+/// and its held-out RMSE lower by `min_gain`. The criterion on the fit rows is not asked: between the corners
 /// the fit run's residual is slow, its effective samples few, and it refused both torque
 /// filters above (scores −4 and −19). The held-out data then chooses one effect, once, at
 /// 1 %; the report says so ([`super::NAMED_ON_HELD_OUT`]), since the error after is then not
@@ -2218,8 +2218,8 @@ pub(crate) fn held_out_prefers(
 /// (twice at most): the held-out data never chooses a shape or a coefficient, and it chooses
 /// an effect in one case only, the link equation's lag that its fit run shows too sparsely
 /// ([`sparse_lag_held_out`]); else it only refuses. (Before the selection it also decides
-/// whether the restoring model's files are tared: [`super::identify`].) With the restoring model each prefix is
-/// judged with its loop refitted for it.
+/// whether the restoring model's files are tared: [`super::identify`].) With the restoring
+/// model each prefix is judged with its loop refitted for it.
 /// `declared` is the declared model's fit, its held-out RMSE and its loop.
 pub(crate) fn with_heldout_veto(
     p: &mut Problem,
