@@ -521,7 +521,7 @@ pub(crate) fn forward(
                     .enumerate()
                     .filter(|(i, _)| *i >= evenly || i % 2 == 1)
                 {
-                    if let Ok((_, c, v)) = settle_slip(p, &chosen, c, rows, 1) {
+                    if let Ok((_, c, v)) = settle_slip(p, &chosen, c, rows, false) {
                         tried_slips.push((c, v));
                     }
                 }
@@ -537,7 +537,7 @@ pub(crate) fn forward(
                             size: f64::NAN,
                             ..*c
                         };
-                        settle_slip(p, &chosen, &searched, rows, 5).ok()
+                        settle_slip(p, &chosen, &searched, rows, true).ok()
                     })
                     .min_by(|a, b| a.2.total_cmp(&b.2));
                 let Some((mut q, mut c, mut v)) = settled else {
@@ -553,7 +553,7 @@ pub(crate) fn forward(
                 if let Some(t) = split_times(&s, &rows.fit, &e, Place::Deflection)
                     .first()
                     .filter(|t| !t.same_shape(&c))
-                    && let Ok((q2, c2, v2)) = settle_slip(p, &chosen, t, rows, 5)
+                    && let Ok((q2, c2, v2)) = settle_slip(p, &chosen, t, rows, true)
                     && v2 < v
                 {
                     (q, c, v) = (q2, c2, v2);
@@ -1227,47 +1227,43 @@ pub(crate) fn golden_section<T: Clone>(
 }
 
 /// An encoder slip `cand` (its jump time) on the restoring model: δ from the column
-/// linearised through the loop's slope, then the loop replayed on the corrected input and
-/// refitted, δ corrected again, for at most `rounds` or until it settles. Returns the problem
-/// with the refitted loop, the slip with its δ and the validation RMSE.
+/// linearised through the loop's slope and the loop refitted on the input corrected by it;
+/// with `profiled`, δ then searched between 0 and twice that ([`profile_slip`]). Returns the
+/// problem with the refitted loop, the slip with its δ and the validation RMSE.
+///
+/// The linearised δ is read against the loop fitted without the slip, which has bent to hold
+/// part of it, and it overshoots: 2× and 6× the slip on the fifth generator's lever (slip
+/// seeds 6 and 7). Linearising again against the refitted loop does not converge — it
+/// alternated in sign and grew, and at slip-6's true instant its second step was 2·10⁵ rad,
+/// the loop could not be fitted and the candidate was dropped — so δ is searched directly.
 fn settle_slip(
     p: &Problem,
     chosen: &[Shaped],
     cand: &Shaped,
     rows: &Rows,
-    rounds: usize,
+    profiled: bool,
 ) -> Result<(Problem, Shaped, f64), IdentifyError> {
     let mut q = p.clone();
-    let mut delta = 0.0;
-    for _ in 0..rounds {
-        let mut trial = chosen.to_vec();
-        trial.push(Shaped {
-            size: delta,
-            ..*cand
-        });
-        trial.push(*cand);
-        let s = q.signals(Transform {
-            slope: true,
-            ..Transform::of(&trial)
-        });
-        let f = fit(&s, &trial, &q.tau, &rows.fit).ok_or(IdentifyError::Solve)?;
-        let scale = f.part(0).first().copied().unwrap_or(1.0);
-        let step = f.part(trial.len()).first().copied().unwrap_or(0.0) / scale;
-        if !step.is_finite() {
-            break;
-        }
-        delta += step;
-        trial.truncate(chosen.len());
-        trial.push(Shaped {
-            size: delta,
-            ..*cand
-        });
-        q.restoring = Some(refit_restoring(&q, &trial, &rows.fit)?);
-        if step.abs() <= 0.01 * delta.abs() {
-            break;
-        }
+    let mut trial = chosen.to_vec();
+    trial.push(Shaped { size: 0.0, ..*cand });
+    trial.push(*cand);
+    let s = q.signals(Transform {
+        slope: true,
+        ..Transform::of(&trial)
+    });
+    let f = fit(&s, &trial, &q.tau, &rows.fit).ok_or(IdentifyError::Solve)?;
+    let scale = f.part(0).first().copied().unwrap_or(1.0);
+    let mut delta = f.part(trial.len()).first().copied().unwrap_or(0.0) / scale;
+    if !delta.is_finite() {
+        delta = 0.0;
     }
-    if rounds > 1 && delta != 0.0 {
+    trial.truncate(chosen.len());
+    trial.push(Shaped {
+        size: delta,
+        ..*cand
+    });
+    q.restoring = Some(refit_restoring(&q, &trial, &rows.fit)?);
+    if profiled && delta != 0.0 {
         (q, delta) = profile_slip(q, chosen, cand, rows, delta);
     }
     let slip = Shaped {
@@ -1281,9 +1277,8 @@ fn settle_slip(
 }
 
 /// The slip's size where the fit error with the loop refitted for it is least, searched
-/// (golden sections, ten steps) between half and twice the size `delta` that alternating slip
-/// and loop settled on. Alternating stalls short of the slip: the loop's own shape holds part
-/// of it (a stiffer, taller loop), and each round moves both by a fraction of what is left.
+/// (golden sections, ten steps) between 0 and twice the linearised size `delta`
+/// ([`settle_slip`]).
 fn profile_slip(
     q: Problem,
     chosen: &[Shaped],
@@ -1308,7 +1303,7 @@ fn profile_slip(
     let Some(e) = loop_fit_error(&q, &trial, Transform::of(&trial), &rows.fit) else {
         return (q, delta);
     };
-    let (size, q) = golden_section((0.5 * delta, 2.0 * delta), (delta, (q.clone(), e)), at);
+    let (size, q) = golden_section((0.0, 2.0 * delta), (delta, (q.clone(), e)), at);
     (q, size)
 }
 
@@ -1364,7 +1359,7 @@ fn slip_twin(q: &Problem, chosen: &[Shaped], step: &Shaped, rows: &Rows) -> Opti
         size: f64::NAN,
         ..*step
     };
-    let (qs, slip, _) = settle_slip(q, chosen, &slip, rows, 5).ok()?;
+    let (qs, slip, _) = settle_slip(q, chosen, &slip, rows, true).ok()?;
     let with = |c: &Shaped| [chosen, &[*c]].concat();
     let (fit_step, fit_slip) = (
         residual_fitted_on(q, &with(step), &rows.fit)?,
