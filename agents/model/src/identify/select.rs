@@ -1244,8 +1244,8 @@ fn settle_slip(
     profiled: bool,
 ) -> Result<(Problem, Shaped, f64), IdentifyError> {
     let mut q = p.clone();
+    // The slip's column 1[t ≥ t_j]·dτ̂/dx beside the loop's scale: δ is their ratio.
     let mut trial = chosen.to_vec();
-    trial.push(Shaped { size: 0.0, ..*cand });
     trial.push(*cand);
     let s = q.signals(Transform {
         slope: true,
@@ -1257,7 +1257,7 @@ fn settle_slip(
     if !delta.is_finite() {
         delta = 0.0;
     }
-    trial.truncate(chosen.len());
+    trial.pop();
     trial.push(Shaped {
         size: delta,
         ..*cand
