@@ -319,6 +319,8 @@ pub fn from_found(found: &[Found], tare: &[Tare]) -> Applied {
             (Effect::SensorDelay, _) if f.at_search_bound() => {
                 a.refused.push((Effect::SensorDelay, AT_BOUND_NOT_APPLIED));
             }
+            // A linear spring's torque filter (`first_order_filter`) goes live as a delay of its
+            // time constant: the same lag at low frequencies, off by k·T²·φ̈/2.
             (Effect::SensorDelay, _) => a.effects.torque_lag_s = p("delay_s").unwrap_or(0.0),
             (e, _) => a.refused.push((e, no_live_form(e))),
         }

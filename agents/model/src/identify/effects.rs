@@ -86,7 +86,7 @@ impl Effect {
                 "the lever's exact torque τ(φ, d) less its linearisation G(0)²k_α·φ (the k_α·α·dG/dφ term that k_φ = G²k_α drops)"
             }
             Effect::SensorDelay => {
-                "one sensor path lags the other: the declared model is fed x(t − δ); δ > 0 the torque lags the deflection, δ < 0 the deflection lags the torque; on the link equation the lag may instead be a sensor's first-order low-pass of time constant |δ| (first_order_filter = 1)"
+                "one sensor path lags the other: the declared model is fed x(t − δ); δ > 0 the torque lags the deflection, δ < 0 the deflection lags the torque; on the link equation and a linear spring the lag may instead be a sensor's first-order low-pass of time constant |δ| (first_order_filter = 1)"
             }
             Effect::Offset => {
                 "a sensor zero: on the torque sensor (+ c, and + c₂ after t_j when a mount slips) or on the deflection encoder (a zero slip: τ̂(x − s) after t_j)"
