@@ -1367,6 +1367,25 @@ fn with_the_configs_lever_envelope_the_loops_stiffness_is_the_levers_at_rest_and
     );
 }
 
+/// Four sines (amplitude, angular frequency [rad/s], phase) of amplitudes 0.6–1 × `amplitude`
+/// and frequencies 0.2 Hz – `top_hz`, drawn in that order from `rng`.
+fn random_sines(rng: &mut plants::Rng, amplitude: f64, top_hz: f64) -> Vec<(f64, f64, f64)> {
+    (0..4)
+        .map(|_| {
+            (
+                amplitude * rng.range(0.6, 1.0),
+                TAU * rng.range(0.2, top_hz),
+                rng.range(0.0, TAU),
+            )
+        })
+        .collect()
+}
+
+/// The gain and phase of 1/(1 + j·ω·tc), a first-order low-pass at angular frequency `w`.
+fn low_pass_at(w: f64, tc: f64) -> (f64, f64) {
+    (1.0 / (1.0 + (w * tc).powi(2)).sqrt(), -(w * tc).atan())
+}
+
 /// A link (I = 0.03 kg·m², N = 0.02 N·m·s/rad: light damping) swung ±1.4 rad by four sines of
 /// up to 2.4 Hz at 1 kHz for 25 s, one of its sensor paths read through a first-order low-pass
 /// of time constant `tc` (`angle`: the encoder's; else the torque sensor's), written in closed
@@ -1376,17 +1395,8 @@ fn with_the_configs_lever_envelope_the_loops_stiffness_is_the_levers_at_rest_and
 fn filtered_link(draw: u64, angle: bool, tc: f64) -> Run {
     let (inertia, damping): (f64, f64) = (0.03, 0.02);
     let mut rng = plants::Rng::new(0xF11_7E2 + draw);
-    let sines: Vec<(f64, f64, f64)> = (0..4)
-        .map(|_| {
-            (
-                0.35 * rng.range(0.6, 1.0),
-                TAU * rng.range(0.2, 2.4),
-                rng.range(0.0, TAU),
-            )
-        })
-        .collect();
+    let sines = random_sines(&mut rng, 0.35, 2.4);
     let (n, dt) = (25_000, 0.001);
-    let lp = |w: f64| (1.0 / (1.0 + (w * tc).powi(2)).sqrt(), -(w * tc).atan());
     let mut t = Vec::with_capacity(n);
     let (mut q, mut tau) = (vec![0.0; n], vec![0.0; n]);
     for i in 0..n {
@@ -1395,7 +1405,7 @@ fn filtered_link(draw: u64, angle: bool, tc: f64) -> Run {
         for &(a, w, p) in &sines {
             // τ of a sine q = a·sin(w·s + p): a·w·(N·cos − I·w·sin) = a·w·√((I·w)² + N²)·
             // sin(w·s + p + θ).
-            let (g, lag) = lp(w);
+            let (g, lag) = low_pass_at(w, tc);
             let theta = damping.atan2(-inertia * w);
             let r = a * w * (inertia * w).hypot(damping);
             if angle {
@@ -1479,15 +1489,7 @@ fn on_a_lightly_damped_link_a_sensors_first_order_filter_is_named_a_filtered_lag
 fn filtered_spring(draw: u64, tc: f64) -> (Run, f64) {
     let k = 43.0;
     let mut rng = plants::Rng::new(0x5_F11 + draw);
-    let sines: Vec<(f64, f64, f64)> = (0..4)
-        .map(|_| {
-            (
-                0.035 * rng.range(0.6, 1.0),
-                TAU * rng.range(0.2, 4.0),
-                rng.range(0.0, TAU),
-            )
-        })
-        .collect();
+    let sines = random_sines(&mut rng, 0.035, 4.0);
     let (n, dt) = (24_000, 0.001);
     let count = TAU / f64::from(1u32 << 18);
     let mut t = Vec::with_capacity(n);
@@ -1496,7 +1498,7 @@ fn filtered_spring(draw: u64, tc: f64) -> (Run, f64) {
         let s = i as f64 * dt;
         t.push(s);
         for &(a, w, p) in &sines {
-            let (g, lag) = (1.0 / (1.0 + (w * tc).powi(2)).sqrt(), -(w * tc).atan());
+            let (g, lag) = low_pass_at(w, tc);
             phi[i] += a * (w * s + p).sin();
             tau[i] += g * k * a * (w * s + p + lag).sin();
         }
