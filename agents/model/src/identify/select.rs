@@ -278,6 +278,7 @@ impl NotAdded {
 }
 
 /// Why a lag of the deflection is not added beside viscous friction on a joint model.
+const NO_STOP_WHY: &str = "no side of it stiffens (its rates fitted to 0): what it gained was the loop refitted beside it, not a stop";
 const RATE_NOISE_WHY: &str = "a lag of the deflection beside viscous friction (to first order the same column) gaining no more than the noise of the rate the friction is fitted on";
 
 /// Whether `c` is a lag at the largest |δ| its effect's grid in `cands` searched. The error
@@ -392,7 +393,9 @@ pub(crate) fn forward(
     let mut gains = Vec::new();
     // The rate's noise in a chosen viscous friction's column, (b·σ_v)² (see `rank`).
     let mut viscous_share = 0.0;
-    let refused;
+    // Stops that came to carry nothing once the effects after them settled: not tried again.
+    let mut emptied: Vec<NotAdded> = Vec::new();
+    let mut refused;
     loop {
         let sig = p.signals(sig_transform(p, &chosen));
         let now = fit(&sig, &chosen, &p.tau, &rows.train).ok_or(IdentifyError::Solve)?;
@@ -409,7 +412,7 @@ pub(crate) fn forward(
         let mut paying: Vec<Paying> = Vec::new();
         let mut per_effect = Vec::new();
         for (e, grid) in cands {
-            if chosen.iter().any(|c| c.effect == *e) {
+            if chosen.iter().any(|c| c.effect == *e) || emptied.iter().any(|n| n.effect == *e) {
                 continue;
             }
             let grid = if *e == Effect::Offset {
@@ -708,6 +711,17 @@ pub(crate) fn forward(
                 || inertia_back)
                 && gain > 0.0;
             let pays = (gain >= opts.min_gain || lag_shown) && sc > 0.0;
+            // A stop none of whose sides stiffens is no stop: what it gained was the loop
+            // refitted beside it (the fifth generator's lever, backlash seed 5: a symmetric
+            // stop of rate 0 on both sides named first, ahead of the gap that was there).
+            if cand.effect == Effect::HardStop && coefs.iter().all(|k| *k <= 0.0) {
+                per_effect.push(NotAdded {
+                    why: Some(NO_STOP_WHY),
+                    shape: Some(cand),
+                    ..NotAdded::new(*e, gain, sc)
+                });
+                continue;
+            }
             let beside_friction = deflection_lag(p.model, &cand) && viscous_share > 0.0;
             // Its validation residual, fitted once for the rule below and for the ranking.
             let residual = (pays || beside_friction)
@@ -763,6 +777,7 @@ pub(crate) fn forward(
         }) = best.filter(|_| chosen.len() < opts.max_effects)
         else {
             refused = per_effect;
+            refused.append(&mut emptied);
             break;
         };
         if cand.effect == Effect::ViscousFriction {
@@ -792,6 +807,22 @@ pub(crate) fn forward(
         if p.model == Declared::Restoring {
             settle_restoring(p, &mut chosen, cands, rows, progress)?;
         }
+        // A stop chosen before the effects that came after it may be left carrying nothing
+        // (its rates fitted to 0 beside them): it is no longer a claim the data makes, and is
+        // taken out (the fifth generator's lever, backlash seed 5: a stop chosen first, its
+        // rates 0 once the gap and viscous friction were in).
+        if let Some(k) = empty_stop(p, &chosen, rows) {
+            let c = chosen.remove(k);
+            let gain = gains.remove(k);
+            emptied.push(NotAdded {
+                why: Some(NO_STOP_WHY),
+                shape: Some(c),
+                ..NotAdded::new(c.effect, gain, f64::NAN)
+            });
+            if p.model == Declared::Restoring {
+                settle_restoring(p, &mut chosen, cands, rows, progress)?;
+            }
+        }
         // A jump the fit rows cannot tell from a held-out block, whichever search found it:
         // the block's middle.
         let gaps = RowTimes::of(&sig.t_rel, &rows.fit);
@@ -806,6 +837,17 @@ pub(crate) fn forward(
         gains,
         refused,
     })
+}
+
+/// The index of a chosen stop none of whose sides stiffens in the fit of all the chosen
+/// effects on the fit rows (its rates all fitted to 0).
+fn empty_stop(p: &Problem, chosen: &[Shaped], rows: &Rows) -> Option<usize> {
+    let sig = p.signals(sig_transform(p, chosen));
+    let f = fit(&sig, chosen, &p.tau, &rows.fit)?;
+    chosen
+        .iter()
+        .enumerate()
+        .position(|(k, c)| c.effect == Effect::HardStop && f.part(k + 1).iter().all(|r| *r <= 0.0))
 }
 
 /// A stiffness that changes over the run, on the restoring model: the loop fitted without it
