@@ -277,8 +277,9 @@ impl NotAdded {
     }
 }
 
-/// Why a lag of the deflection is not added beside viscous friction on a joint model.
+/// Why a stop is not named whose rates all fitted to 0 ([`no_side_stiffens`]).
 const NO_STOP_WHY: &str = "no side of it stiffens (its rates fitted to 0): what it gained was the loop refitted beside it, not a stop";
+/// Why a lag of the deflection is not added beside viscous friction on a joint model.
 const RATE_NOISE_WHY: &str = "a lag of the deflection beside viscous friction (to first order the same column) gaining no more than the noise of the rate the friction is fitted on";
 
 /// Whether `c` is a lag at the largest |δ| its effect's grid in `cands` searched. The error
@@ -714,7 +715,7 @@ pub(crate) fn forward(
             // A stop none of whose sides stiffens is no stop: what it gained was the loop
             // refitted beside it (the fifth generator's lever, backlash seed 5: a symmetric
             // stop of rate 0 on both sides named first, ahead of the gap that was there).
-            if cand.effect == Effect::HardStop && coefs.iter().all(|k| *k <= 0.0) {
+            if no_side_stiffens(&cand, &coefs) {
                 per_effect.push(NotAdded {
                     why: Some(NO_STOP_WHY),
                     shape: Some(cand),
@@ -839,15 +840,20 @@ pub(crate) fn forward(
     })
 }
 
+/// Whether `c` is a stop none of whose sides stiffens: its rates `coefs` all fitted to 0.
+fn no_side_stiffens(c: &Shaped, coefs: &[f64]) -> bool {
+    c.effect == Effect::HardStop && coefs.iter().all(|k| *k <= 0.0)
+}
+
 /// The index of a chosen stop none of whose sides stiffens in the fit of all the chosen
-/// effects on the fit rows (its rates all fitted to 0).
+/// effects on the fit rows.
 fn empty_stop(p: &Problem, chosen: &[Shaped], rows: &Rows) -> Option<usize> {
     let sig = p.signals(sig_transform(p, chosen));
     let f = fit(&sig, chosen, &p.tau, &rows.fit)?;
     chosen
         .iter()
         .enumerate()
-        .position(|(k, c)| c.effect == Effect::HardStop && f.part(k + 1).iter().all(|r| *r <= 0.0))
+        .position(|(k, c)| no_side_stiffens(c, f.part(k + 1)))
 }
 
 /// A stiffness that changes over the run, on the restoring model: the loop fitted without it
