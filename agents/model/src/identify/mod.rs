@@ -875,6 +875,7 @@ pub fn identify(
         chosen
             .iter()
             .any(|c| c.effect == Effect::SensorDelay && c.shape > 0.0),
+        &rows.fit,
     );
     Ok(Identified {
         model: opts.model,

@@ -152,6 +152,64 @@ pub(crate) fn bend(x: &[f64], tau: &[f64], dir: &[f64], rows: &[usize], e: &[f64
     })
 }
 
+/// The share of held-out samples beyond the fit rows' input range over which
+/// [`diagnose`] says so ([`BEYOND_ERROR_RATIO`] too).
+const BEYOND_SHARE: f64 = 0.01;
+/// How much larger the held-out error beyond the fit rows' input range must be than within
+/// it: an input the fit never reached where the model still holds is no finding.
+const BEYOND_ERROR_RATIO: f64 = 2.0;
+
+/// Held-out samples whose input lies outside the range the fit rows covered.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub(crate) struct Beyond {
+    /// The fit rows' input range [rad].
+    pub fit: (f64, f64),
+    /// The held-out rows' input range [rad].
+    pub held: (f64, f64),
+    /// The share of held-out samples outside `fit`.
+    pub share: f64,
+    /// The held-out residual's rms outside `fit` over its rms within (∞ where it is 0 within).
+    pub error_ratio: f64,
+}
+
+/// Where the held-out input `x` (rows `held`, residual `e` indexed like `held`) leaves the
+/// range of the fit rows `fit`. None where it never does, or where no sample lies within.
+pub(crate) fn beyond_the_fit(
+    x: &[f64],
+    fit: &[usize],
+    held: &[usize],
+    e: &[f64],
+) -> Option<Beyond> {
+    let range = |rows: &[usize]| {
+        rows.iter()
+            .map(|&i| x[i])
+            .fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), v| {
+                (lo.min(v), hi.max(v))
+            })
+    };
+    let (lo, hi) = range(fit);
+    let (mut out, mut within) = ((0.0, 0usize), (0.0, 0usize));
+    for (&i, r) in held.iter().zip(e) {
+        let acc = if (lo..=hi).contains(&x[i]) {
+            &mut within
+        } else {
+            &mut out
+        };
+        acc.0 += r * r;
+        acc.1 += 1;
+    }
+    if out.1 == 0 || within.1 == 0 {
+        return None;
+    }
+    let rms = |(ss, n): (f64, usize)| (ss / n as f64).sqrt();
+    Some(Beyond {
+        fit: (lo, hi),
+        held: range(held),
+        share: out.1 as f64 / held.len() as f64,
+        error_ratio: rms(out) / rms(within),
+    })
+}
+
 /// Whiteness, cross-correlations and loop orientation of the held-out residual `e` (indexed
 /// like `rows`), and what they point to.
 #[allow(clippy::too_many_arguments)]
@@ -164,6 +222,7 @@ pub(crate) fn diagnose(
     opts: &Options,
     (loop_before, loop_after): (f64, f64),
     lag_found: bool,
+    fit: &[usize],
 ) -> Residual {
     // Contiguous held-out stretches, resampled onto a uniform grid (sampling may be irregular).
     let mut seg_e = Vec::new();
@@ -274,6 +333,25 @@ pub(crate) fn diagnose(
             }
         ));
     }
+    if let Some(b) = beyond_the_fit(&s.x, fit, rows, e)
+        && b.share >= BEYOND_SHARE
+        && b.error_ratio >= BEYOND_ERROR_RATIO
+    {
+        let x = if opts.model.is_joint() {
+            "deflection"
+        } else {
+            "angle"
+        };
+        structure.push(format!(
+            "the held-out data go beyond the fit data's {x} ({:+.4} to {:+.4} rad; held out {:+.4} to {:+.4} rad): {:.0} % of the held-out samples lie outside it and their error is {:.1}× that of the samples within — what acts there (a stop, a bend) is not in the fit data, so no effect could be found for it; fit on a test that covers the held-out range",
+            b.fit.0,
+            b.fit.1,
+            b.held.0,
+            b.held.1,
+            100.0 * b.share,
+            b.error_ratio
+        ));
+    }
     if opts.model.is_joint() && loop_before < -LOOP_BACKWARDS {
         structure.push(format!(
             "the declared model's residual loops the other way round ({loop_before:+.2}: loading below unloading, it gives energy back) — no passive part does that; it is the torque lagging the deflection{}, or a sign error",
@@ -345,5 +423,30 @@ mod tests {
         // Too few rows, or a residual of another length: no answer.
         assert_eq!(bend(&x, &tau, &dir, &rows[..5], &e[..5]), None);
         assert_eq!(bend(&x, &tau, &dir, &rows, &e[..10]), None);
+    }
+
+    #[test]
+    fn held_out_samples_beyond_the_fit_range_are_counted_with_their_errors_ratio() {
+        // Fit rows sweep ±0.2 rad, held-out rows ±0.3 rad evenly: a third of them lie beyond
+        // (|x| > 0.2), where the residual is 0.5 against 0.05 within.
+        let fit: Vec<usize> = (0..201).collect();
+        let held: Vec<usize> = (201..502).collect();
+        let x: Vec<f64> = (0..201)
+            .map(|i| -0.2 + 0.4 * i as f64 / 200.0)
+            .chain((0..301).map(|i| -0.3 + 0.6 * i as f64 / 300.0))
+            .collect();
+        let e: Vec<f64> = held
+            .iter()
+            .map(|&i| if x[i].abs() > 0.2 + 1e-12 { 0.5 } else { 0.05 })
+            .collect();
+        let b = beyond_the_fit(&x, &fit, &held, &e).unwrap();
+        assert!((b.fit.0 + 0.2).abs() < 1e-12 && (b.fit.1 - 0.2).abs() < 1e-12);
+        assert!((b.held.0 + 0.3).abs() < 1e-12 && (b.held.1 - 0.3).abs() < 1e-12);
+        let outside = held.iter().filter(|&&i| x[i].abs() > 0.2 + 1e-12).count();
+        assert_eq!(outside, 100);
+        assert!((b.share - 100.0 / 301.0).abs() < 1e-12, "{b:?}");
+        assert!((b.error_ratio - 10.0).abs() < 1e-9, "{b:?}");
+        // Held-out rows within the fit's range: nothing to say.
+        assert_eq!(beyond_the_fit(&x, &held, &fit, &e[..201]), None);
     }
 }
