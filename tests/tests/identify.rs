@@ -843,6 +843,69 @@ fn on_a_spring_moved_at_one_speed_damping_is_not_taken_for_dry_friction_built_up
 }
 
 #[test]
+fn on_a_spring_with_a_stiff_stop_a_ripple_of_the_longest_period_searched_is_not_named_beside_it() {
+    // The third generator's stop, seed 72: a linear spring (574 N·m/rad) meeting a stop 5.6
+    // times as stiff at 12.8 mrad, a 250 Hz chirp fitted and a triangle wave held out, a
+    // 16-bit encoder whose steps the stop multiplies into torque. The stop was found, and
+    // beside it a `periodic_ripple` of exactly five periods over the range — the longest
+    // period searched, its error still falling towards longer ones: a smooth function of
+    // the deflection, not a located period (the ripples of the generators' own ripple cases
+    // sit at 6.9–15.8 periods). It gained 7 % held out. Only the stop is named now.
+    let (v, truth, twin) = generated_with_twin("third-generator.py", "linear", "stop", 72);
+    assert_eq!(names(&v), ["hard_stop"], "{v:#}");
+    adds_nothing(&twin);
+    let ripple = v["refused"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .find(|r| r["name"] == "periodic_ripple")
+        .unwrap_or_else(|| panic!("periodic_ripple among the refused: {v:#}"));
+    assert!(
+        ripple["why"]
+            .as_str()
+            .is_some_and(|w| w.contains("longest searched")),
+        "{ripple:#}"
+    );
+    // The onset where the generator put it (one count of the 16-bit encoder is 96 µrad, 0.75 %).
+    let (got, want) = (
+        param(&v, "hard_stop", "onset_rad"),
+        truth_value(&truth, "at"),
+    );
+    assert!(
+        (got / want - 1.0).abs() < 0.015,
+        "onset {got} rad against {want}"
+    );
+    // The twin's floor is the spring's; beside the stop the encoder's steps cost 5.6 times as
+    // much torque: the generator's own stop on the measured deflection leaves 2.0 times the
+    // twin's error, the stop found 2.9 times.
+    held_out_within(&v, &twin, 3.3);
+}
+
+#[test]
+fn a_stop_the_fit_run_never_reaches_is_not_named_and_the_report_says_the_held_out_run_goes_beyond()
+{
+    // The third generator's stop, seed 71: a stop at 214 mrad, the fit run's ramps reaching
+    // 208, the held-out run's 263. Nothing in the fit data shows the stop, so nothing can be
+    // named for it; the held-out error beyond the fit's range is what the report must point
+    // to, rather than leave it as unexplained slow structure.
+    let (v, truth) = generated("third-generator.py", "linear", "stop", 71, &[]);
+    assert!(names(&v).is_empty(), "{v:#}");
+    assert!(truth_value(&truth, "at") > 0.208, "{truth}");
+    let notes: Vec<&str> = v["notes"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .filter_map(|n| n.as_str())
+        .collect();
+    assert!(
+        notes
+            .iter()
+            .any(|n| n.contains("go beyond the fit data's deflection")),
+        "{notes:#?}"
+    );
+}
+
+#[test]
 fn a_gap_that_a_levers_softening_ends_hide_on_straight_lines_is_found_with_the_lines_bent() {
     // The fifth generator's backlash seed 4: paper B's lever at a 3.9 mm pivot with Bouc-Wen
     // friction and a gap in its spring, ramps to ±0.20 rad fitted, a chirp to ±0.24 rad held
