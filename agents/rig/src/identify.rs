@@ -528,7 +528,7 @@ fn notes(res: &Identified, fit: &[Run], held: &[Run]) -> Vec<String> {
         ));
     }
     for s in &res.residual.structure {
-        n.push(format!("unexplained: {s}"));
+        n.push(format!("residual: {s}"));
     }
     n
 }

@@ -284,7 +284,8 @@ pub struct Residual {
     /// spring, or the restoring loop without a lever's envelope); said in `structure` where an
     /// odd cubic takes a quarter of it and the stiffness changes by 3–90 % toward the ends.
     pub bend: Option<Bend>,
-    /// Plain-language remarks on structure left unexplained.
+    /// Plain-language remarks on the residual: structure left unexplained, the orientation of
+    /// its loop and what accounts for it, and held-out data beyond the fit data's range.
     pub structure: Vec<String>,
 }
 
@@ -876,6 +877,7 @@ pub fn identify(
             .iter()
             .any(|c| c.effect == Effect::SensorDelay && c.shape > 0.0),
         &rows.fit,
+        &chosen.iter().map(|c| c.effect).collect::<Vec<_>>(),
     );
     Ok(Identified {
         model: opts.model,

@@ -3,7 +3,7 @@
 
 use super::model::{Fitted, Signals};
 use super::rows::Problem;
-use super::{Correlation, Declared, Heldout, Options, Residual, signals, stats};
+use super::{Correlation, Declared, Effect, Heldout, Options, Residual, signals, stats};
 use crate::hysteresis::Envelope;
 
 /// Held-out series: measured (tared), the declared model's and the final prediction.
@@ -223,6 +223,7 @@ pub(crate) fn diagnose(
     (loop_before, loop_after): (f64, f64),
     lag_found: bool,
     fit: &[usize],
+    found: &[Effect],
 ) -> Residual {
     // Contiguous held-out stretches, resampled onto a uniform grid (sampling may be irregular).
     let mut seg_e = Vec::new();
@@ -353,9 +354,33 @@ pub(crate) fn diagnose(
         ));
     }
     if opts.model.is_joint() && loop_before < -LOOP_BACKWARDS {
+        let others: Vec<&str> = found
+            .iter()
+            .filter(|e| **e != Effect::SensorDelay)
+            .map(|e| e.name())
+            .collect();
+        // Where the effects found (no lag among them) leave a held-out residual that no
+        // longer loops backwards, the loop was theirs: a stiffness that grows over the run
+        // unloads stiffer than it loaded (the third generator's drift seed 70: −0.14 before,
+        // +0.00 after), and a stop or a gap the declared model crosses with a line, or its
+        // own loop bent to hold them, leaves the same sign. Saying "a lag or a sign error"
+        // there sends a lab after the wrong part.
+        let explained = if lag_found {
+            " — it is the torque lagging the deflection (found: sensor_delay), or a sign error"
+                .to_string()
+        } else if !others.is_empty() && loop_after >= -LOOP_BACKWARDS {
+            format!(
+                " — with what was found ({}) the held-out residual no longer does ({loop_after:+.2}): it was theirs (a stiffness that changes over the run, a stop or a gap the model's line or loop bends across), not a lag between the sensors",
+                others.join(", ")
+            )
+        } else if opts.model == Declared::Restoring {
+            " — against the declared loop: the torque lagging the deflection, a sign error, or the loop fitted taller than the data's where it bends to hold something it lacks".to_string()
+        } else {
+            " — no passive part does that; it is the torque lagging the deflection, or a sign error"
+                .to_string()
+        };
         structure.push(format!(
-            "the declared model's residual loops the other way round ({loop_before:+.2}: loading below unloading, it gives energy back) — no passive part does that; it is the torque lagging the deflection{}, or a sign error",
-            if lag_found { " (found: sensor_delay)" } else { "" }
+            "the declared model's residual loops the other way round ({loop_before:+.2}: loading below unloading, it gives energy back){explained}"
         ));
     }
     Residual {
