@@ -513,6 +513,20 @@ fn generated(
     (v, std::fs::read_to_string(dir.join("truth.txt")).unwrap())
 }
 
+/// The report refused `effect` for a reason of its own that says `because`.
+fn refused_because(v: &Value, effect: &str, because: &str) {
+    let r = v["refused"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .find(|r| r["name"] == effect)
+        .unwrap_or_else(|| panic!("{effect} among the refused: {v:#}"));
+    assert!(
+        r["why"].as_str().is_some_and(|w| w.contains(because)),
+        "{r:#}"
+    );
+}
+
 /// A number of the generator's truth (a Python dict as `str` prints it): the first `'key': value`.
 fn truth_value(truth: &str, key: &str) -> f64 {
     let at = truth
@@ -672,19 +686,7 @@ fn on_the_lever_a_stop_left_carrying_nothing_beside_a_gap_is_not_named() {
     // proportion to the rate is a constant height on each stroke, and the report says the fit
     // cannot tell it from dry friction or the loop. Its held-out error is still the floor the
     // gap is judged against.)
-    let stop = v["refused"]
-        .as_array()
-        .unwrap()
-        .iter()
-        .find(|r| r["name"] == "hard_stop")
-        .unwrap_or_else(|| panic!("hard_stop among the refused: {v:#}"));
-    assert!(
-        stop["why"]
-            .as_str()
-            .unwrap()
-            .contains("no side of it stiffens"),
-        "{stop:#}"
-    );
+    refused_because(&v, "hard_stop", "no side of it stiffens");
     // The gap's half-width in the deflection: where the spring's angle, through the
     // generator's lever (arm 31.5 mm, pivot 9.6 mm + d), reaches the gap's r.
     let (r, d) = (truth_value(&truth, "r"), truth_value(&truth, "d_mm") * 1e-3);
@@ -854,18 +856,7 @@ fn on_a_spring_with_a_stiff_stop_a_ripple_of_the_longest_period_searched_is_not_
     let (v, truth, twin) = generated_with_twin("third-generator.py", "linear", "stop", 72);
     assert_eq!(names(&v), ["hard_stop"], "{v:#}");
     adds_nothing(&twin);
-    let ripple = v["refused"]
-        .as_array()
-        .unwrap()
-        .iter()
-        .find(|r| r["name"] == "periodic_ripple")
-        .unwrap_or_else(|| panic!("periodic_ripple among the refused: {v:#}"));
-    assert!(
-        ripple["why"]
-            .as_str()
-            .is_some_and(|w| w.contains("longest searched")),
-        "{ripple:#}"
-    );
+    refused_because(&v, "periodic_ripple", "longest searched");
     // The onset where the generator put it (one count of the 16-bit encoder is 96 µrad, 0.75 %).
     let (got, want) = (
         param(&v, "hard_stop", "onset_rad"),

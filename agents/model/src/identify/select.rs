@@ -714,29 +714,35 @@ pub(crate) fn forward(
                 || inertia_back)
                 && gain > 0.0;
             let pays = (gain >= opts.min_gain || lag_shown) && sc > 0.0;
+            // What the candidate is, if not added: a rule of its own's reason where one
+            // refused it.
+            let not_added = |why: Option<&'static str>| {
+                let n = NotAdded::new(*e, gain, sc);
+                NotAdded {
+                    why: why.or(n.why),
+                    shape: Some(cand),
+                    ..n
+                }
+            };
             // A stop none of whose sides stiffens is no stop: what it gained was the loop
             // refitted beside it (the fifth generator's lever, backlash seed 5: a symmetric
             // stop of rate 0 on both sides named first, ahead of the gap that was there).
-            if no_side_stiffens(&cand, &coefs) {
-                per_effect.push(NotAdded {
-                    why: Some(NO_STOP_WHY),
-                    shape: Some(cand),
-                    ..NotAdded::new(*e, gain, sc)
-                });
-                continue;
-            }
+            //
             // A ripple at the longest period searched: the error still falls towards fewer
             // periods over the range, so what it fits is a smooth function of the angle (a
             // misfit of the declared model), not a located period (the third generator's
             // linear spring, stop seed 72: beside a stop 5.6 times as stiff as the spring,
             // under a 16-bit encoder's steps, a ripple of exactly five periods over the range
             // gained 7 % held out; the real ripples of those runs sit at 6.9–15.8).
-            if ripple_at_longest_period(&cand, &grid) {
-                per_effect.push(NotAdded {
-                    why: Some(SMOOTH_RIPPLE_WHY),
-                    shape: Some(cand),
-                    ..NotAdded::new(*e, gain, sc)
-                });
+            let own_rule = if no_side_stiffens(&cand, &coefs) {
+                Some(NO_STOP_WHY)
+            } else if ripple_at_longest_period(&cand, &grid) {
+                Some(SMOOTH_RIPPLE_WHY)
+            } else {
+                None
+            };
+            if own_rule.is_some() {
+                per_effect.push(not_added(own_rule));
                 continue;
             }
             let beside_friction = deflection_lag(p.model, &cand) && viscous_share > 0.0;
@@ -753,17 +759,10 @@ pub(crate) fn forward(
                     !clearly_better(p, &rows.validate, with, &now, viscous_share)
                 })
             {
-                per_effect.push(NotAdded {
-                    why: Some(RATE_NOISE_WHY),
-                    shape: Some(cand),
-                    ..NotAdded::new(*e, gain, sc)
-                });
+                per_effect.push(not_added(Some(RATE_NOISE_WHY)));
                 continue;
             }
-            per_effect.push(NotAdded {
-                shape: Some(cand),
-                ..NotAdded::new(*e, gain, sc)
-            });
+            per_effect.push(not_added(None));
             if pays {
                 let curve = (!std::ptr::eq(pe, &*p))
                     .then(|| pe.restoring.clone())
