@@ -362,12 +362,7 @@ fn a_fit_at_one_speed_is_said_to_be_one_where_rate_and_friction_cannot_be_told_a
         0.05 * (2.0 / PI) * (2.0 * PI * 0.3 * moving(t)).sin().asin()
     });
     let v = identify(&tri, &["--model", "linear"]);
-    let notes = v["notes"].as_array().unwrap();
-    let speed = notes
-        .iter()
-        .filter_map(|n| n.as_str())
-        .find(|n| n.starts_with("speed:"))
-        .unwrap_or_else(|| panic!("{notes:?}"));
+    let speed = note_that(&v, |n| n.starts_with("speed:"));
     assert!(speed.contains("0.06"), "{speed}");
     // A sine of the same swing moves at every speed up to its peak: nothing to say.
     let sine = spring_file("speed-sine", |t| 0.05 * (2.0 * PI * 0.3 * moving(t)).sin());
@@ -511,6 +506,17 @@ fn generated(
     );
     let v = identified_case(model, &dir);
     (v, std::fs::read_to_string(dir.join("truth.txt")).unwrap())
+}
+
+/// The report's first note that `has` accepts (all of them in the panic where none does).
+fn note_that(v: &Value, has: impl Fn(&str) -> bool) -> &str {
+    v["notes"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .filter_map(|n| n.as_str())
+        .find(|n| has(n))
+        .unwrap_or_else(|| panic!("{:#}", v["notes"]))
 }
 
 /// The report refused `effect` for a reason of its own that says `because`.
@@ -882,18 +888,7 @@ fn a_stop_the_fit_run_never_reaches_is_not_named_and_the_report_says_the_held_ou
     let (v, truth) = generated("third-generator.py", "linear", "stop", 71, &[]);
     assert!(names(&v).is_empty(), "{v:#}");
     assert!(truth_value(&truth, "at") > 0.208, "{truth}");
-    let notes: Vec<&str> = v["notes"]
-        .as_array()
-        .unwrap()
-        .iter()
-        .filter_map(|n| n.as_str())
-        .collect();
-    assert!(
-        notes
-            .iter()
-            .any(|n| n.contains("go beyond the fit data's deflection")),
-        "{notes:#?}"
-    );
+    note_that(&v, |n| n.contains("go beyond the fit data's deflection"));
 }
 
 #[test]
@@ -909,14 +904,7 @@ fn a_backwards_residual_loop_that_a_stiffness_drift_accounts_for_is_not_blamed_o
     let before = v["residual"]["loop_before"].as_f64().unwrap();
     let after = v["residual"]["loop_after"].as_f64().unwrap();
     assert!(before < -0.1 && after > -0.1, "{before} {after}");
-    let notes = v["notes"].to_string();
-    let said = v["notes"]
-        .as_array()
-        .unwrap()
-        .iter()
-        .filter_map(|n| n.as_str())
-        .find(|n| n.contains("other way round"))
-        .unwrap_or_else(|| panic!("{notes}"));
+    let said = note_that(&v, |n| n.contains("other way round"));
     assert!(
         said.contains("(stiffness_drift)") && !said.contains("sign error"),
         "{said}"
@@ -924,13 +912,9 @@ fn a_backwards_residual_loop_that_a_stiffness_drift_accounts_for_is_not_blamed_o
     // A real torque lag on the same spring keeps the lag's wording.
     let (v, _) = generated("third-generator.py", "linear", "lag", 70, &[]);
     assert_eq!(names(&v), ["sensor_delay"], "{v:#}");
-    assert!(
-        v["notes"]
-            .to_string()
-            .contains("the torque lagging the deflection (found: sensor_delay)"),
-        "{}",
-        v["notes"]
-    );
+    note_that(&v, |n| {
+        n.contains("the torque lagging the deflection (found: sensor_delay)")
+    });
 }
 
 #[test]
@@ -1154,13 +1138,7 @@ fn measured_spring_5_at_9_nm_linear_start_names_what_it_lacks_and_says_what_is_m
     assert!(bias.abs() < 0.1, "held-out bias {bias} N·m");
     // Irregular sampling is reported, and the messy parts are said, not hidden.
     assert_eq!(v["sampling"][0]["irregular"], true);
-    let notes: Vec<&str> = v["notes"]
-        .as_array()
-        .unwrap()
-        .iter()
-        .map(|n| n.as_str().unwrap())
-        .collect();
-    assert!(notes.iter().any(|n| n.starts_with("steps:")), "{notes:?}");
+    note_that(&v, |n| n.starts_with("steps:"));
     assert_eq!(v["residual"]["white"], false);
     for f in [
         "spring5-9nm.md",

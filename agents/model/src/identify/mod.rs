@@ -873,11 +873,8 @@ pub fn identify(
         dt,
         opts,
         (loop_before, loop_after),
-        chosen
-            .iter()
-            .any(|c| c.effect == Effect::SensorDelay && c.shape > 0.0),
         &rows.fit,
-        &chosen.iter().map(|c| c.effect).collect::<Vec<_>>(),
+        &chosen,
     );
     Ok(Identified {
         model: opts.model,

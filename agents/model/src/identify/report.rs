@@ -3,7 +3,7 @@
 
 use super::model::{Fitted, Signals};
 use super::rows::Problem;
-use super::{Correlation, Declared, Effect, Heldout, Options, Residual, signals, stats};
+use super::{Correlation, Declared, Effect, Heldout, Options, Residual, Shaped, signals, stats};
 use crate::hysteresis::Envelope;
 
 /// Held-out series: measured (tared), the declared model's and the final prediction.
@@ -221,9 +221,8 @@ pub(crate) fn diagnose(
     dt: f64,
     opts: &Options,
     (loop_before, loop_after): (f64, f64),
-    lag_found: bool,
     fit: &[usize],
-    found: &[Effect],
+    chosen: &[Shaped],
 ) -> Residual {
     // Contiguous held-out stretches, resampled onto a uniform grid (sampling may be irregular).
     let mut seg_e = Vec::new();
@@ -338,13 +337,9 @@ pub(crate) fn diagnose(
         && b.share >= BEYOND_SHARE
         && b.error_ratio >= BEYOND_ERROR_RATIO
     {
-        let x = if opts.model.is_joint() {
-            "deflection"
-        } else {
-            "angle"
-        };
         structure.push(format!(
-            "the held-out data go beyond the fit data's {x} ({:+.4} to {:+.4} rad; held out {:+.4} to {:+.4} rad): {:.0} % of the held-out samples lie outside it and their error is {:.1}× that of the samples within — what acts there (a stop, a bend) is not in the fit data, so no effect could be found for it; fit on a test that covers the held-out range",
+            "the held-out data go beyond the fit data's {} ({:+.4} to {:+.4} rad; held out {:+.4} to {:+.4} rad): {:.0} % of the held-out samples lie outside it and their error is {:.1}× that of the samples within — what acts there (a stop, a bend) is not in the fit data, so no effect could be found for it; fit on a test that covers the held-out range",
+            inputs[0].0,
             b.fit.0,
             b.fit.1,
             b.held.0,
@@ -354,10 +349,14 @@ pub(crate) fn diagnose(
         ));
     }
     if opts.model.is_joint() && loop_before < -LOOP_BACKWARDS {
-        let others: Vec<&str> = found
+        // A lag of the torque path (δ > 0) runs the loop backwards.
+        let lag_found = chosen
             .iter()
-            .filter(|e| **e != Effect::SensorDelay)
-            .map(|e| e.name())
+            .any(|c| c.effect == Effect::SensorDelay && c.shape > 0.0);
+        let others: Vec<&str> = chosen
+            .iter()
+            .filter(|c| c.effect != Effect::SensorDelay)
+            .map(|c| c.effect.name())
             .collect();
         // Where the effects found (no lag among them) leave a held-out residual that no
         // longer loops backwards, the loop was theirs: a stiffness that grows over the run
