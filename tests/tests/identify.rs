@@ -1182,6 +1182,36 @@ fn measured_spring_1_at_2_nm_scored_on_its_earlier_test_is_never_worse_than_line
 }
 
 #[test]
+fn measured_spring_1_at_1_nm_gets_a_stop_of_its_own_on_each_side_where_one_symmetric_stop_would_not_pay()
+ {
+    // The deflection meets a stiffer stretch at +6.0 mrad and at −7.4 mrad, 11 and 8 N·m/rad
+    // past them. One stop the same on both sides scores −9 against none and is refused; the
+    // pair scores +199. With the symmetric stop picked (bf68ece–3eaea6b) nothing was named
+    // at 0.052 N·m held out; the pair and the 32 ms torque lag it lets through reach 0.013.
+    let Some(dir) = springs() else { return };
+    let v = identify_spring(
+        &[&dir.join("kt-1-1-1-1-27022023-160414.csv")],
+        &dir.join("kt-1-2-2-1-27022023-161500.csv"),
+        "spring1-1nm.json",
+    );
+    assert_eq!(
+        names(&v).first().map(String::as_str),
+        Some("hard_stop"),
+        "{v:#}"
+    );
+    let (up, down) = (
+        param(&v, "hard_stop", "onset_rad"),
+        param(&v, "hard_stop", "onset_negative_rad"),
+    );
+    assert!(
+        (up + down).abs() > 1e-3 && up > 0.0 && down < 0.0,
+        "onsets {up} and {down}: one on each side, more than 1 mrad apart in size"
+    );
+    let (tared, after) = (rmse(&v, "tared"), rmse(&v, "after"));
+    assert!(after < 0.5 * tared, "held-out RMSE tared {tared} → {after}");
+}
+
+#[test]
 fn measured_spring_3_at_3_nm_scored_on_its_earlier_test_keeps_the_hysteresis_that_halves_its_error()
 {
     // Fitted on the second test, scored on the first. The hysteresis takes the first test's
