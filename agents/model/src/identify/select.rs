@@ -2269,6 +2269,17 @@ pub(crate) struct Vetted {
     pub by_held_out: Option<f64>,
 }
 
+impl Vetted {
+    /// Keeps `c` (validation gain `gain`) once the held-out data confirmed it: its held-out
+    /// error after, and the loop fitted for the set.
+    fn keep(&mut self, c: Shaped, gain: f64, held_err: f64, curve: Option<RestoringCurve>) {
+        self.kept.push(c);
+        self.gains.push(gain);
+        self.held_errs.push(held_err);
+        self.curve = curve;
+    }
+}
+
 /// On the link equation a lag is to first order a change of inertia: τ(t − δ) ≈
 /// (I − δN)·q̈ + N·q̇ − δI·q⃛ (a filter likewise). Only the jerk term tells it, and a motion
 /// whose acceleration changes seldom — moves between holds, as a servo's, with a trapezoidal
@@ -2324,9 +2335,12 @@ fn sparse_lag_held_out(
     let f = read.unwrap_or(fixed);
     if let Some(lr) = held_out_prefers((p, last), (p, &f), &rows.held, opts.min_gain) {
         let n = out.not_added.remove(k);
-        out.kept = trial;
-        out.gains.push(n.gain);
-        out.held_errs.push(f.error_on(&p.tau, &rows.held));
+        out.keep(
+            lag,
+            n.gain,
+            f.error_on(&p.tau, &rows.held),
+            out.curve.clone(),
+        );
         out.by_held_out = Some(lr);
     }
     Ok(())
@@ -2409,10 +2423,7 @@ pub(crate) fn with_heldout_veto(
             }
             match held_out_check(p, &out, &last, c, rows, opts)? {
                 Ok((f, err)) => {
-                    out.kept.push(*c);
-                    out.gains.push(*g);
-                    out.held_errs.push(err);
-                    out.curve = p.restoring.clone();
+                    out.keep(*c, *g, err, p.restoring.clone());
                     last = f;
                 }
                 Err((why, confirmed)) => {
@@ -2511,17 +2522,17 @@ fn held_out_check(
 }
 
 /// An effect an earlier pass kept beside the ones it vetoed, which the last pass did not
-/// choose, is judged again beside what the last pass kept, at the shape it was kept with: by
-/// the same held-out check ([`held_out_check`]), and kept where it passes. The rerun without
+/// choose, is judged again beside what the last pass kept: by the same held-out check
+/// ([`held_out_check`]), and kept where it passes. The rerun without
 /// a vetoed effect can lose an effect that the vetoed one unmasked: measured spring 4 at
 /// 0.5 N·m has a torque zero that jumps once in its fit test (−0.05 N·m, 86 % off the
 /// validation error, rightly vetoed: the held-out test has no such jump). Beside that jump the
 /// criterion paid for a 19 ms torque lag, which the held-out test confirmed (its residual
 /// correlates 0.94 with the rate 26 ms later, its loop runs backwards); without it the jump's
 /// misfit swamps the validation blocks, the lag searched alone settles on the angle's path,
-/// and nothing was named (9.4×, 12.4× with the lag). The shape was chosen on the fit rows and
-/// is chosen by the fit rows among the shapes the passes kept (beside the last pass's set) and
-/// confirmed, not chosen, by the held-out rows: the same two tests as any effect kept.
+/// and nothing was named (9.4×; 13.3× with the lag). Its shape is the one the fit rows prefer,
+/// beside the last pass's set, among the shapes the passes kept it with; the held-out rows
+/// confirm it, they do not choose it: the same two tests as any effect kept.
 fn carry_confirmed(
     p: &mut Problem,
     out: &mut Vetted,
@@ -2541,18 +2552,17 @@ fn carry_confirmed(
         if out.kept.iter().any(|k| k.effect == e) || refused.contains(&e) {
             continue;
         }
-        // Of the shapes the passes kept it with, the one the fit rows prefer beside what the
-        // last pass kept (the held-out rows confirm it, they do not choose it).
         let on_fit_rows = |c: &Shaped| {
             let trial = [&out.kept[..], &[*c]].concat();
             let s = p.signals(sig_transform(p, &trial));
             fit(&s, &trial, &p.tau, &rows.fit)
                 .map_or(f64::INFINITY, |f| f.error_on(&p.tau, &rows.fit))
         };
-        let Some((c, g)) = carried
+        let Some((_, c, g)) = carried
             .iter()
             .filter(|(c, _)| c.effect == e)
-            .min_by(|a, b| on_fit_rows(&a.0).total_cmp(&on_fit_rows(&b.0)))
+            .map(|(c, g)| (on_fit_rows(c), c, g))
+            .min_by(|a, b| a.0.total_cmp(&b.0))
         else {
             continue;
         };
@@ -2563,11 +2573,8 @@ fn carry_confirmed(
         }
         match held_out_check(p, out, last, c, rows, opts)? {
             Ok((f, err)) => {
-                out.kept.push(*c);
-                out.gains.push(*g);
-                out.held_errs.push(err);
-                out.curve = p.restoring.clone();
                 out.not_added.retain(|n| n.effect != e);
+                out.keep(*c, *g, err, p.restoring.clone());
                 *last = f;
             }
             Err(_) => p.restoring = curve,
