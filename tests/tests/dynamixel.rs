@@ -172,16 +172,23 @@ fn rig_joint_on_virtual_servos_gives_the_sim_backends_force_estimate() {
     let (sim, code, stderr) = ee_forces(&["--start-ns".into(), start.to_string()], start);
     assert_eq!(code, Some(0), "{stderr}");
     let (mut sq, mut peak, mut n) = (0.0, 0.0_f64, 0usize);
+    let (mut first, mut last) = (i64::MAX, i64::MIN);
     for (ms, (fx, fy)) in &hw {
         if let Some((gx, gy)) = sim.get(ms) {
             sq += (fx - gx).powi(2) + (fy - gy).powi(2);
             peak = peak.max(gx.hypot(*gy));
             n += 1;
+            (first, last) = (first.min(*ms), last.max(*ms));
         }
     }
+    // The comparison needs instants, not a rate: a loaded CI machine has run the pty bus at a
+    // third of its tick rate (2267 estimates in the 8 s watched, the sim backend 7033). What
+    // must hold on any machine: the hardware path's estimates fall on the world's ticks (nearly
+    // all of them have a sim twin), there are a thousand of them, and they span the hand's
+    // push (6 of the 8 s watched). The rate itself is `rig bench`'s to measure.
     assert!(
-        n > 3000,
-        "only {n} common instants (hardware {}, sim {})",
+        n >= 1000 && 10 * n >= 9 * hw.len() && last - first >= 6000,
+        "{n} common instants from {first} to {last} ms (hardware {}, sim {})",
         hw.len(),
         sim.len()
     );
