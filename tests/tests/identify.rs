@@ -533,6 +533,15 @@ fn refused_because(v: &Value, effect: &str, because: &str) {
     );
 }
 
+/// The report does not list `effect` among the refused (named, it was judged again and kept).
+fn never_refused(v: &Value, effect: &str) {
+    let refused = v["refused"].as_array().unwrap();
+    assert!(
+        !refused.iter().any(|r| r["name"] == effect),
+        "{effect} among the refused: {refused:#?}"
+    );
+}
+
 /// A number of the generator's truth (a Python dict as `str` prints it): the first `'key': value`.
 fn truth_value(truth: &str, key: &str) -> f64 {
     let at = truth
@@ -1227,15 +1236,7 @@ fn measured_spring_4_at_half_a_nm_keeps_the_torque_lag_its_fit_tests_vetoed_zero
     );
     assert_eq!(names(&v), ["sensor_delay"], "{v:#}");
     // Named, it is no longer among the refused (the last pass had refused it alone).
-    assert!(
-        !v["refused"]
-            .as_array()
-            .unwrap()
-            .iter()
-            .any(|r| r["name"] == "sensor_delay"),
-        "{:#}",
-        v["refused"]
-    );
+    never_refused(&v, "sensor_delay");
     // The jump that unmasked it is refused held out.
     refused_because(&v, "offset", "not the held-out error");
     let delay = param(&v, "sensor_delay", "delay_s");
@@ -1268,12 +1269,8 @@ fn measured_spring_3_at_2_nm_judges_its_stops_and_torque_lag_again_beside_the_ze
         );
     }
     // Named, neither is among the refused any more.
-    for r in v["refused"].as_array().unwrap() {
-        assert!(
-            r["name"] != "hard_stop" && r["name"] != "sensor_delay",
-            "{r:#}"
-        );
-    }
+    never_refused(&v, "hard_stop");
+    never_refused(&v, "sensor_delay");
     let delay = param(&v, "sensor_delay", "delay_s");
     assert!(
         (0.020..0.040).contains(&delay),
