@@ -1284,6 +1284,34 @@ fn measured_spring_3_at_2_nm_judges_its_stops_and_torque_lag_again_beside_the_ze
 }
 
 #[test]
+fn measured_spring_5_at_1_nm_swinging_seventeen_dead_bands_gets_stops_narrow_enough_to_trace_its_loop()
+ {
+    // A 2500 N·m/rad spring at 1 N·m swings 0.73 mrad: 52 counts of its AS5311, 17 dead bands
+    // of three counts. Stops from ten dead bands (0.42 mrad) are wider than half the swing:
+    // none was searched, and the loop of ±0.02 N·m its branches show (loading at the line,
+    // unloading 0.04 N·m under it, the same in both tests) went unnamed, 0.022 N·m held out.
+    let Some(dir) = springs() else { return };
+    let v = identify_spring(
+        &[&dir.join("kt-1-10-46-5-09032023-141035.csv")],
+        &dir.join("kt-1-10-47-5-09032023-141224.csv"),
+        "spring5-1nm.json",
+    );
+    assert!(names(&v).iter().any(|n| n == "hysteresis"), "{v:#}");
+    // Its stops slide within the swing: none wider than half of it (0.37 mrad), none narrower
+    // than a dead band (3 × 14 µrad).
+    let (narrowest, widest) = (
+        param(&v, "hysteresis", "narrowest_half_width_rad"),
+        param(&v, "hysteresis", "widest_half_width_rad"),
+    );
+    assert!(
+        narrowest >= 4.2e-5 && widest <= 3.7e-4,
+        "stops of half-widths {narrowest} to {widest} rad"
+    );
+    let (tared, after) = (rmse(&v, "tared"), rmse(&v, "after"));
+    assert!(after < 0.6 * tared, "held-out RMSE tared {tared} → {after}");
+}
+
+#[test]
 fn measured_spring_3_at_3_nm_scored_on_its_earlier_test_keeps_the_hysteresis_that_halves_its_error()
 {
     // Fitted on the second test, scored on the first. The hysteresis takes the first test's

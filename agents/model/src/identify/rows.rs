@@ -424,8 +424,6 @@ impl Problem {
             at_rest: vec![],
         };
         p.set_rate_window(opts.rate_window.unwrap_or(0.02));
-        // Hysteresis: stops from ten dead bands (narrower is Coulomb friction) to half the
-        // fit data's range, sixteen per the span (on the measured springs the held-out error falls by up to 10 % from eight).
         let (lo, hi) = p.range_of_fit_angle();
         // The restoring loop's direction dead band: one count of the rig's AS5048A, the band
         // the live estimator runs the loop with — but at most a tenth of the fit data's swing,
@@ -435,11 +433,19 @@ impl Problem {
         p.loop_dead_band = opts
             .dead_band
             .unwrap_or_else(|| dead_band.max(AS5048A_COUNT_RAD.min(0.1 * (hi - lo))));
-        p.widths = super::logspace(
-            (10.0 * dead_band).max((hi - lo) / 1000.0),
-            0.5 * (hi - lo),
-            16,
-        );
+        // Hysteresis: stops from ten dead bands (narrower is Coulomb friction) to half the
+        // fit data's range, sixteen per the span (on the measured springs the held-out error
+        // falls by up to 10 % from eight). But the narrowest at most half the widest: a stop
+        // slides only after twice its half-width of travel, and a swing under forty dead bands
+        // would get stops that never slide, or none (measured spring 5 at 1 N·m swings
+        // 0.73 mrad, 17 dead bands of its AS5311, and got none: its loop of ±0.02 N·m went
+        // unnamed). The sign of a rate that slow is the encoder's noise, so Coulomb friction
+        // cannot take a narrow stop's place there.
+        let widest = 0.5 * (hi - lo);
+        let narrowest = (10.0 * dead_band)
+            .max((hi - lo) / 1000.0)
+            .min((0.5 * widest).max(dead_band));
+        p.widths = super::logspace(narrowest, widest, 16);
         p
     }
 
