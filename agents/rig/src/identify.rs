@@ -567,7 +567,8 @@ fn noise_line(res: &Identified) -> String {
         })
         .collect();
     format!(
-        "encoder noise: {noise} µrad rms as measured, averaged out by a local quadratic ({}); \
+        "encoder noise: {noise} µrad rms as measured, averaged out by a local quadratic, each \
+         sample's as wide as the motion around it allows (half-window, median: {}); \
          the joint model and its effects see that deflection, the \"before\" the raw one",
         windows.join(", ")
     )

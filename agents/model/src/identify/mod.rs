@@ -340,7 +340,8 @@ pub struct Identified {
     /// The angle's white noise as measured, rms [rad]: the encoder's own noise (or its
     /// quantisation where the angle moves counts per sample). The joint models average it
     /// out before any effect is fitted when it is over a third of the dead band: `smoothing`
-    /// gives each run's half-window [s] (0: that run left as measured; empty: none denoised).
+    /// gives each run's half-window [s], the median of its samples' own (0: that run left as
+    /// measured; empty: none denoised).
     pub angle_noise: f64,
     pub smoothing: Vec<(String, f64)>,
     /// The runs whose link angle was read as the taut string through its counts (a quantised

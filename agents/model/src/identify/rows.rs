@@ -238,8 +238,8 @@ pub(crate) struct Problem {
     pub step: f64,
     /// Each run's median sampling step [s].
     pub steps: Vec<f64>,
-    /// Each run's half-window of [`Problem::denoise`]'s smoothing [s] (0: left as measured;
-    /// empty: not denoised).
+    /// Each run's half-window of [`Problem::denoise`]'s smoothing [s], the median of its
+    /// samples' own (0: left as measured; empty: not denoised).
     pub smoothing: Vec<f64>,
     /// Each run's link angle read as the taut string through its counts
     /// ([`signals::taut_string`]).
@@ -491,7 +491,9 @@ impl Problem {
     /// Averages the encoder's noise — its own, and its quantisation — out of the joint models'
     /// angle: each run's deflection becomes a local quadratic's value (zero-phase, exact on a
     /// quadratic) over the widest half-window up to the rate window that leaves the motion
-    /// alone ([`signals::smoothing_window`]), its rates computed again. The spring sees the
+    /// alone, and where the motion is slow enough to fill that, each sample's over the widest
+    /// up to [`SMOOTHING_CAP`] that its neighbourhood allows ([`signals::smoothing_window`]);
+    /// its rates computed again (over the rate window). The spring sees the
     /// true deflection; read raw, an encoder's noise makes every small retreat a reversal of the
     /// loop, and a lag "gains" by averaging the noise it interpolates.
     ///
@@ -522,7 +524,8 @@ impl Problem {
                 let Some(phi) = r.phi.as_mut() else {
                     return 0.0;
                 };
-                match signals::smoothing_window(&r.t, phi, noise.max(quantisation), w) {
+                let noise = noise.max(quantisation);
+                match signals::smoothing_window(&r.t, phi, noise, w, SMOOTHING_CAP) {
                     Some((h, smoothed)) => {
                         *phi = smoothed;
                         h
@@ -743,6 +746,13 @@ pub(crate) fn longest_run(runs: &[Run]) -> f64 {
 /// The weak form's widest smoother's half-support [s]: the samples this near a run's ends
 /// take no part ([`Role::Edge`]; a tenth of the shortest run at most).
 pub const WEAK_EDGE: f64 = 0.32;
+
+/// The widest half-window over which [`Problem::denoise`] averages a sample's deflection [s],
+/// a bound on the cost: where the motion bends it stops the widening well within this, and on
+/// a hold or a straight ramp, where a quadratic is exact, half a second of a slow spring test
+/// leaves a sixth of its encoder's noise (measured spring 2 at 1 N·m, 100 Hz: ±0.36 s at the
+/// median; the rates' window there, two samples each side, leaves 70 %).
+pub const SMOOTHING_CAP: f64 = 0.5;
 
 /// The half-window of the local quadratic giving the weak form's direction of motion [s]
 /// (the smoothed q̇ turns a wide smoother's half-support early).
