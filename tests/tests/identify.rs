@@ -519,6 +519,16 @@ fn note_that(v: &Value, has: impl Fn(&str) -> bool) -> &str {
         .unwrap_or_else(|| panic!("{:#}", v["notes"]))
 }
 
+/// The report has no note that `has`.
+fn no_note_that(v: &Value, has: impl Fn(&str) -> bool) {
+    let notes = v["notes"].as_array().unwrap();
+    assert!(
+        !notes.iter().filter_map(|n| n.as_str()).any(has),
+        "{:#}",
+        v["notes"]
+    );
+}
+
 /// The report refused `effect` for a reason of its own that says `because`.
 fn refused_because(v: &Value, effect: &str, because: &str) {
     let r = v["refused"]
@@ -885,6 +895,8 @@ fn on_a_spring_with_a_stiff_stop_a_ripple_of_the_longest_period_searched_is_not_
     // much torque: the generator's own stop on the measured deflection leaves 2.0 times the
     // twin's error, the stop found 2.9 times.
     held_out_within(&v, &twin, 3.3);
+    // A contact five times as stiff as the spring: the name stands without a doubt beside it.
+    no_note_that(&v, |n| n.starts_with("stop:"));
 }
 
 #[test]
@@ -1309,6 +1321,35 @@ fn measured_spring_5_at_1_nm_swinging_seventeen_dead_bands_gets_stops_narrow_eno
     );
     let (tared, after) = (rmse(&v, "tared"), rmse(&v, "after"));
     assert!(after < 0.6 * tared, "held-out RMSE tared {tared} → {after}");
+}
+
+#[test]
+fn measured_spring_2_at_2_nm_a_stop_that_stiffens_it_by_a_few_per_cent_is_said_to_be_as_likely_the_springs_own()
+ {
+    // 2620 N·m/rad at 2 N·m: the deflection swings ±0.8 mrad, and a `hard_stop` from −0.16 mrad
+    // lowers the held-out error (0.026 → 0.022 N·m) by adding under 4 % of the spring's own
+    // stiffness on one side. A contact adds about the spring's stiffness or more; a slope that
+    // changes by a few per cent is as likely the spring's own (a progressive or asymmetric
+    // spring), and the report says so, with the share computed from its own numbers.
+    let Some(dir) = springs() else { return };
+    let v = identify_spring(
+        &[&dir.join("kt-2-4-16-2-27022023-172136.csv")],
+        &dir.join("kt-2-5-17-2-27022023-172319.csv"),
+        "spring2-2nm.json",
+    );
+    assert_eq!(names(&v), ["hard_stop"], "{v:#}");
+    let k = v["base"]["after"]["stiffness_nm_per_rad"].as_f64().unwrap();
+    let rate = param(&v, "hard_stop", "stop_rate_negative_nm_per_rad");
+    let share = 100.0 * rate / k;
+    assert!(share > 0.0 && share < 10.0, "{rate} of {k} N·m/rad");
+    let note = note_that(&v, |n| n.starts_with("stop:"));
+    let onset = param(&v, "hard_stop", "onset_negative_rad");
+    assert!(
+        note.contains(&format!("beyond {:+.2} mrad", onset * 1e3))
+            && note.contains(&format!("({share:.1} %)"))
+            && note.contains("progressive or asymmetric spring"),
+        "{note}"
+    );
 }
 
 #[test]

@@ -488,6 +488,9 @@ fn notes(res: &Identified, fit: &[Run], held: &[Run]) -> Vec<String> {
             0.5 * (from + to)
         ));
     }
+    if let Some(note) = mild_stop(res) {
+        n.push(note);
+    }
     for r in fit.iter().chain(held) {
         let steps = rig_model::identify::signals::steps(&r.tau);
         if steps > 0 {
@@ -531,6 +534,57 @@ fn notes(res: &Identified, fit: &[Run], held: &[Run]) -> Vec<String> {
         n.push(format!("residual: {s}"));
     }
     n
+}
+
+/// A stop's added stiffness under this share of the spring's own is said to be mild: a
+/// contact (an end stop, parts meeting) is a stiff part in parallel and adds about the
+/// spring's stiffness or more (the generators' stops 4–6.8×), while a progressive or
+/// asymmetric spring, or a sensor's nonlinearity, changes the slope by a few to a few tens of
+/// per cent (the measured torsion springs' "stops": 3.7–31 %).
+const MILD_STOP_SHARE: f64 = 0.5;
+
+/// The spring's own stiffness as the report's base gives it [N·m/rad]: the linear spring's,
+/// or the restoring loop's at rest times its scale; `None` for the link equation or a loop
+/// without a curve.
+fn spring_stiffness(res: &Identified) -> Option<f64> {
+    let get = |name: &str| {
+        (res.base_after.iter())
+            .find(|(k, _)| *k == name)
+            .map(|&(_, v)| v)
+    };
+    let k = get("stiffness_nm_per_rad")? * get("scale").unwrap_or(1.0);
+    (k.is_finite() && k > 0.0).then_some(k)
+}
+
+/// A note where a named `hard_stop` stiffens the joint by less than [`MILD_STOP_SHARE`] of
+/// the spring's own stiffness on a side: a torque–deflection test shows a slope that changes
+/// past a deflection, and a change that small is as likely the spring's own as a contact.
+fn mild_stop(res: &Identified) -> Option<String> {
+    let stop = res.effects.iter().find(|e| e.effect == Effect::HardStop)?;
+    let k = spring_stiffness(res)?;
+    let sides: Vec<String> = [
+        ("onset_rad", "stop_rate_nm_per_rad"),
+        ("onset_negative_rad", "stop_rate_negative_nm_per_rad"),
+    ]
+    .iter()
+    .filter_map(|(at, rate)| Some((stop.param(at)?, stop.param(rate)?)))
+    .filter(|&(_, rate)| rate > 0.0 && rate < MILD_STOP_SHARE * k)
+    .map(|(at, rate)| {
+        format!(
+            "beyond {:+.2} mrad by {} N·m/rad ({:.1} %)",
+            at * 1e3,
+            sig(rate),
+            100.0 * rate / k,
+        )
+    })
+    .collect();
+    (!sides.is_empty()).then(|| {
+        format!(
+            "stop: the hard_stop stiffens the joint {} of the spring's {} N·m/rad — a contact (an end stop, parts meeting) adds about the spring's stiffness or more; a change this mild may as well be the spring's own slope changing with its deflection (a progressive or asymmetric spring, or the sensor's nonlinearity): look for a contact at that deflection before acting on the name",
+            sides.join(" and "),
+            sig(k)
+        )
+    })
 }
 
 /// The span the rate is read over for `signals::speeds`: a count of a 14-bit encoder is
