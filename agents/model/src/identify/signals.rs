@@ -629,11 +629,13 @@ pub fn smoothing_window(
             / ((2.0 * mf - 1.0) * (2.0 * mf + 1.0) * (2.0 * mf + 3.0))
     };
     let next = |m: usize| (m * 3 / 2).max(m + 1);
+    // How far the whole run's check reaches: the rates' window, or `widest` if narrower.
+    let whole_run = local_from.min(widest);
     let mut best: Option<(usize, f64, Vec<f64>)> = None;
     let mut m = 2usize;
     loop {
         let h = (m as f64 + 0.5) * dt;
-        if h > local_from.min(widest) && m > 2 {
+        if h > whole_run && m > 2 {
             break;
         }
         let (fit, _, _) = local_fit_of_degree(t, x, h, 2);
@@ -641,12 +643,12 @@ pub fn smoothing_window(
         if super::stats::rmse(&r) > 1.1 * noise * (1.0 - centre(m)).sqrt() {
             break;
         }
-        best = Some((m, h.min(local_from.min(widest).max(2.5 * dt)), fit));
+        best = Some((m, h.min(whole_run.max(2.5 * dt)), fit));
         m = next(m);
     }
     let (base, h, mut value) = best?;
     // Stopped by the motion, not by the rates' window: no wider window.
-    if (next(base) as f64 + 0.5) * dt <= local_from.min(widest) || widest <= local_from {
+    if (next(base) as f64 + 0.5) * dt <= whole_run || widest <= local_from {
         return Some((h, value));
     }
     // One and a half of each value's own noise: a corner keeps a bias under the noise (a 10 s
