@@ -241,17 +241,18 @@ impl Shaped {
         let step = |tj: f64| s.step(tj);
         match self.effect {
             Effect::Hysteresis => s
-                .widths
-                .iter()
-                .map(|&w| {
-                    (
-                        s.per_run_k(|k, a, b| {
-                            let state = s.states.as_ref().map_or(r, |v| v[k]);
-                            stop_operator_from(&xs[a..b], w, state * w)
-                        }),
-                        Bound::NonNegative,
-                    )
+                .stop_columns(s.states.is_none().then_some(r), || {
+                    (s.widths.iter())
+                        .map(|&w| {
+                            s.per_run_k(|k, a, b| {
+                                let state = s.states.as_ref().map_or(r, |v| v[k]);
+                                stop_operator_from(&xs[a..b], w, state * w)
+                            })
+                        })
+                        .collect()
                 })
+                .into_iter()
+                .map(|c| (c, Bound::NonNegative))
                 .collect(),
             Effect::CoulombFriction if r == FRICTION_HELD => {
                 vec![(s.dir_held.clone(), Bound::NonNegative)]

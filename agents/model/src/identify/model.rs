@@ -1,6 +1,8 @@
 //! The prediction: the declared model's columns on the (possibly corrected) inputs, plus the
 //! columns of the added effects, with coefficients fitted by bounded least squares.
 
+use std::cell::RefCell;
+
 use super::effects::{Effect, Place, Shaped};
 use super::rows::{Problem, Role, jump_in};
 use super::signals::{self, dead_zone};
@@ -149,6 +151,28 @@ pub struct Signals {
     pub(crate) weak: Option<(f64, Vec<f64>)>,
     /// Each run's own jump instants ([`Problem::jumps`]).
     pub(crate) jumps: Vec<Vec<(f64, f64)>>,
+    /// Hysteresis's stop-operator columns already built from these signals, by the start state
+    /// they were built from (`None`: the rests' `states`); see [`Self::stop_columns`].
+    stops: StopColumns,
+}
+
+/// How many sets of stop-operator columns a [`Signals`] keeps (a loop's start states searched
+/// are few; a set is a column per width, as long as the runs).
+const STOP_SETS_KEPT: usize = 4;
+
+/// The stop-operator columns a [`Signals`] has built, by start state. A clone starts empty:
+/// what is kept belongs to the signals it was built from, and a copy owes nothing to them.
+#[derive(Debug, Default)]
+struct StopColumns(RefCell<Vec<StopSet>>);
+
+/// A start state's bits (`None`: the rests' states) and the stop operators' columns, a column
+/// per width.
+type StopSet = (Option<u64>, Vec<Vec<f64>>);
+
+impl Clone for StopColumns {
+    fn clone(&self) -> Self {
+        Self::default()
+    }
 }
 
 impl Signals {
@@ -172,6 +196,30 @@ impl Signals {
                 .map(|&t| f64::from(t >= at))
                 .collect()
         })
+    }
+
+    /// The stop operators' columns of hysteresis started from `state` (`None`: each run's from
+    /// the rests' `states`), built by `build` the first time and kept: every fit builds each
+    /// chosen effect's columns afresh, and the search fits hundreds of times beside the same
+    /// loop (a measured spring's identification spent 38 % of its time rebuilding them). The
+    /// signals are not changed once built ([`Problem::signals`] is the only writer), so what is
+    /// kept stays right.
+    pub(crate) fn stop_columns(
+        &self,
+        state: Option<f64>,
+        build: impl FnOnce() -> Vec<Vec<f64>>,
+    ) -> Vec<Vec<f64>> {
+        let key = state.map(f64::to_bits);
+        if let Some((_, cols)) = self.stops.0.borrow().iter().find(|(k, _)| *k == key) {
+            return cols.clone();
+        }
+        let cols = build();
+        let mut kept = self.stops.0.borrow_mut();
+        if kept.len() == STOP_SETS_KEPT {
+            kept.remove(0);
+        }
+        kept.push((key, cols.clone()));
+        cols
     }
 
     /// A column built run by run (stateful operators restart at each run).
@@ -221,6 +269,7 @@ impl Problem {
             states: self.states.clone(),
             weak: self.weak().then(|| (self.rate_window, self.steps.clone())),
             jumps: self.jumps.clone(),
+            stops: StopColumns::default(),
         };
         let mut q_all = Vec::new();
         for (k, r) in self.runs.iter().enumerate() {
@@ -546,5 +595,77 @@ pub(crate) fn base_params(
             }
             v
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::super::{Holdout, Options, Run};
+    use super::*;
+
+    /// Two runs of a swinging deflection (their stop operators restart at each run's start).
+    fn problem() -> Problem {
+        let run = |name: &str, phase: f64| {
+            let t: Vec<f64> = (0..1500).map(|k| k as f64 / 500.0).collect();
+            let phi: Vec<f64> = t
+                .iter()
+                .map(|&t| 0.01 * (4.0 * t + phase).sin() + 0.003 * (11.0 * t).sin())
+                .collect();
+            Run {
+                name: name.into(),
+                tau: phi.iter().map(|p| 50.0 * p).collect(),
+                t,
+                phi: Some(phi),
+                d: None,
+                q: None,
+            }
+        };
+        let opts = Options {
+            model: Declared::Linear,
+            ..Options::default()
+        };
+        Problem::new(
+            &[run("a", 0.0), run("b", 1.0)],
+            &[],
+            &Holdout::Blocks,
+            &opts,
+        )
+    }
+
+    #[test]
+    fn hysteresis_columns_kept_between_fits_are_those_built_afresh_for_every_start_state() {
+        let p = problem();
+        let s = p.signals(Transform::default());
+        assert!(s.widths.len() > 3 && s.bounds.len() == 2);
+        // Each start state's columns, built from the stop operators directly, run by run.
+        let fresh = |state: f64| -> Vec<Vec<f64>> {
+            (s.widths.iter())
+                .map(|&w| {
+                    (s.bounds.iter())
+                        .flat_map(|&(a, b)| signals::stop_operator_from(&s.xs[a..b], w, state * w))
+                        .collect()
+                })
+                .collect()
+        };
+        // More states than are kept, and back to the first ones: each asked twice or more.
+        let states = [-1.0, 0.0, 1.0, 0.5, -0.5, 0.25, -1.0, 0.0, 1.0, -1.0];
+        for &state in &states {
+            let got: Vec<Vec<f64>> = Shaped::new(Effect::Hysteresis, state)
+                .columns(&s)
+                .into_iter()
+                .map(|(c, b)| {
+                    assert_eq!(b, Bound::NonNegative);
+                    c
+                })
+                .collect();
+            assert_eq!(got, fresh(state), "start state {state}");
+        }
+        // A copy of the signals starts with nothing kept, and builds the same columns.
+        let copy = s.clone();
+        assert!(copy.stops.0.borrow().is_empty());
+        assert_eq!(
+            Shaped::new(Effect::Hysteresis, 0.5).columns(&copy).len(),
+            s.widths.len()
+        );
     }
 }
