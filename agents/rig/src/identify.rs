@@ -434,7 +434,7 @@ fn sibling(p: &Path, suffix: &str) -> PathBuf {
 fn notes(res: &Identified, fit: &[Run], held: &[Run]) -> Vec<String> {
     let mut n = Vec::new();
     if res.model == Declared::Restoring
-        && let Some((_, c)) = res.base_before.iter().find(|(k, _)| *k == "offset_nm")
+        && let Some(c) = named(&res.base_before, "offset_nm")
     {
         n.push(format!(
             "before: the loop's lines pass through zero and could not reach the data as given (a deflection read far from its zero: an encoder never re-zeroed), so the loop is fitted beside a torque constant, {c:+.3} N·m, as the linear spring's offset"
@@ -547,13 +547,14 @@ const MILD_STOP_SHARE: f64 = 0.5;
 /// or the restoring loop's at rest times its scale; `None` for the link equation or a loop
 /// without a curve.
 fn spring_stiffness(res: &Identified) -> Option<f64> {
-    let get = |name: &str| {
-        (res.base_after.iter())
-            .find(|(k, _)| *k == name)
-            .map(|&(_, v)| v)
-    };
+    let get = |name| named(&res.base_after, name);
     let k = get("stiffness_nm_per_rad")? * get("scale").unwrap_or(1.0);
     (k.is_finite() && k > 0.0).then_some(k)
+}
+
+/// The parameter called `name` among a declared model's `params` (the report's `base`).
+fn named(params: &[(&'static str, f64)], name: &str) -> Option<f64> {
+    params.iter().find(|(k, _)| *k == name).map(|&(_, v)| v)
 }
 
 /// A note where a named `hard_stop` stiffens the joint by less than [`MILD_STOP_SHARE`] of
@@ -792,12 +793,7 @@ fn report_json(
         "notes": notes,
     });
     if res.model == Declared::Link {
-        let get = |k: &str| {
-            res.base_after
-                .iter()
-                .find(|p| p.0 == k)
-                .map_or(f64::NAN, |p| p.1)
-        };
+        let get = |k| named(&res.base_after, k).unwrap_or(f64::NAN);
         v["inertia"] = num(get("inertia_kgm2"));
         v["weak_form"] = json!({
             "half_support_s": num(res.rate_window),
