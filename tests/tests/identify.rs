@@ -642,17 +642,66 @@ fn on_the_lever_an_encoder_slip_whose_linearised_size_overshoots_is_sized_by_sea
     let (v, truth, twin) = generated_with_twin("lever-generator.py", "restoring", "slip", 6);
     assert_eq!(names(&v), ["offset"], "{v:#}");
     assert!(names(&twin).is_empty(), "{twin:#}");
-    let (jump, s) = (
-        param(&v, "offset", "or_encoder_jump_rad"),
-        truth_value(&truth, "s"),
-    );
+    let ((jump, s), (at, t_j)) = slip_against_truth(&v, &truth);
     assert!((jump / s - 1.0).abs() < 0.05, "slip {jump} against {s}");
-    let (at, t_j) = (
-        param(&v, "offset", "jump_at_s"),
-        truth_value(&truth, "jump_fit_s"),
-    );
     assert!((at - t_j).abs() < 0.05, "slip at {at} s against {t_j} s");
     held_out_within(&v, &twin, 1.04);
+}
+
+/// The slip the report names on the torque, beside the torque step (`or_encoder_jump_rad`), and
+/// its instant [s], against the generator's truth: (named, plant's) each.
+fn slip_against_truth(v: &Value, truth: &str) -> ((f64, f64), (f64, f64)) {
+    (
+        (
+            param(v, "offset", "or_encoder_jump_rad"),
+            truth_value(truth, "s"),
+        ),
+        (
+            param(v, "offset", "jump_at_s"),
+            truth_value(truth, "jump_fit_s"),
+        ),
+    )
+}
+
+#[test]
+fn on_the_lever_a_slip_the_second_starts_loop_took_in_is_found_beside_the_first_loop() {
+    // The fifth generator's slip, seed 9 (never tuned on): a 1.93 mrad slip at 11.33 s, 500 Hz
+    // multi-sines fitted and held out, 0.3 % noise. Tared, the loop fitted afresh (12.1 N·m/rad,
+    // 0.15 N·m high) was refitted from the loop of the data as given and landed on one that had
+    // taken the slip in (5.3 N·m/rad, 0.35 N·m high: the fit rows 2.4 times better, held out
+    // worse), beside which no slip paid: nothing named, 18.6 times the twin's error held out.
+    // The slip is now searched beside the first loop too, and chosen on the validation rows.
+    let (v, truth, twin) = generated_with_twin("lever-generator.py", "restoring", "slip", 9);
+    assert_eq!(names(&v), ["offset"], "{v:#}");
+    adds_nothing(&twin);
+    let ((jump, s), (at, t_j)) = slip_against_truth(&v, &truth);
+    assert!((jump / s - 1.0).abs() < 0.02, "slip {jump} against {s}");
+    assert!((at - t_j).abs() < 0.01, "slip at {at} s against {t_j} s");
+    assert!(v["effects"][0]["params"]["named_on_held_out_likelihood_ratio"].is_null());
+    held_out_within(&v, &twin, 1.1);
+}
+
+#[test]
+fn on_the_lever_a_slip_a_loop_holds_as_well_on_validation_is_named_where_the_held_out_run_confirms_it()
+ {
+    // The fifth generator's slip, seed 7: a 7.6 mrad slip at 23.86 s, 100 Hz chirps fitted and
+    // held out, 0.3 % noise. Tared, the second start's loop fitted the fit rows 6 times better
+    // than the first and the validation blocks as well as the first loop with the slip (0.974
+    // against 0.980 mN·m): nothing named, 3.1 times the twin's error held out. The slip found
+    // beside the first loop fits the fit rows better by the criterion and the held-out run
+    // confirms it (1.7 against 2.0 mN·m): named, and the report says the held-out data chose.
+    let (v, truth, twin) = generated_with_twin("lever-generator.py", "restoring", "slip", 7);
+    assert_eq!(names(&v), ["offset"], "{v:#}");
+    adds_nothing(&twin);
+    assert!(param(&v, "offset", "named_on_held_out_likelihood_ratio") > 6.63);
+    let ((jump, s), (at, t_j)) = slip_against_truth(&v, &truth);
+    // Sized from a loop the slip settles from, not the plant's: 20 % short.
+    assert!((jump / s - 1.0).abs() < 0.25, "slip {jump} against {s}");
+    assert!((at - t_j).abs() < 0.05, "slip at {at} s against {t_j} s");
+    assert!(rmse(&v, "after") < 0.9 * rmse(&v, "before"), "{v:#}");
+    note_that(&v, |n| {
+        n.starts_with("slip: ") && n.contains("named on the held-out data's evidence")
+    });
 }
 
 #[test]

@@ -478,6 +478,16 @@ fn notes(res: &Identified, fit: &[Run], held: &[Run]) -> Vec<String> {
         }
         n.push(note);
     }
+    if let Some((d, lr)) = (res.effects.iter())
+        .filter(|e| e.effect == Effect::Offset)
+        .find_map(|e| Some((e, e.param(rig_model::identify::NAMED_ON_HELD_OUT)?)))
+    {
+        n.push(format!(
+            "slip: the encoder's jump at {:.3} s was named on the held-out data's evidence: on the fit data the loop kept (the better of two starts) held the jump as well as the other start's loop with it (validation {:+.1} %), for a loop with memory can carry a jump through one run's motion; with it the fit rows fit better by the criterion, and the held-out data confirmed it (likelihood ratio {lr:.1}, over χ²₁'s 1 % point) and lost more than --min-gain of its error, so the error after is not independent of this choice; a second held-out test, or a fit run of another motion, would tell from the fit data alone",
+            d.param("jump_at_s").unwrap_or(f64::NAN),
+            100.0 * d.validation_gain,
+        ));
+    }
     for e in &res.effects {
         let Some((from, to)) = e.held_out_block() else {
             continue;

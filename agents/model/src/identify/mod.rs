@@ -189,8 +189,9 @@ impl Errors {
 pub const AT_SEARCH_BOUND: &str = "at_search_bound";
 
 /// A parameter of a link equation's `sensor_delay` whose validation gain on the fit run was
-/// under `min_gain` and which a held-out run confirmed (`select::sparse_lag_held_out`): the
-/// held-out likelihood ratio it passed. The held-out data chose this effect, so the error
+/// under `min_gain` and which a held-out run confirmed (`select::sparse_lag_held_out`), or of
+/// a restoring loop's encoder slip that a loop from another start held as well on the fit run
+/// (`select::slip_from_other_start`): the held-out likelihood ratio it passed. The held-out data chose this effect, so the error
 /// after is not independent of the choice.
 pub const NAMED_ON_HELD_OUT: &str = "named_on_held_out_likelihood_ratio";
 
@@ -596,7 +597,13 @@ pub fn identify(
         // 26 µN·m moved it to another loop, 8 % worse held out with nothing named (a lever at
         // ±0.15 rad). The one that fits the fit rows better is kept.
         if let Some(better) = (raw.restoring.as_ref()).and_then(|c| better_from(&p, &base, c)) {
+            let first = p.restoring.take();
             (p, base) = better;
+            // The better loop may hold an encoder slip the first did not (the fifth
+            // generator's lever, slip seed 9: 5.3 against 12.1 N·m/rad, a half-height of 0.35
+            // against 0.15 N·m; the fit rows 2.4 times better, the held-out run worse, and
+            // beside it no slip paid), so a slip is searched from the first loop too.
+            p.other_starts.extend(first);
         }
         // The restoring model's lines pass through zero, so the tare says the torque at rest
         // is the sensor's zero. Where instead it is the model's own torque at that deflection

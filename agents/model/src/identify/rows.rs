@@ -251,6 +251,10 @@ pub(crate) struct Problem {
     /// ±[`WEAK_SIGN_WINDOW`] (the smoothed q̇ turns a wide smoother's half-support early).
     pub sign_rates: Vec<Vec<f64>>,
     pub restoring: Option<RestoringCurve>,
+    /// Loops the declared model was fitted to from other starts, which fitted the fit rows
+    /// less well with nothing added (set by [`super::identify`] where a second start replaced
+    /// the first): an encoder slip is also settled from each.
+    pub other_starts: Vec<RestoringCurve>,
     /// Half-widths of hysteresis's stop operators [rad].
     pub widths: Vec<f64>,
     /// How many runs are fit runs (the rest are held out).
@@ -410,6 +414,7 @@ impl Problem {
             rates: vec![],
             sign_rates: vec![],
             restoring: None,
+            other_starts: vec![],
             widths: vec![],
             fit_runs: fit.len(),
             loop_rests: None,
