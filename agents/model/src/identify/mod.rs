@@ -191,8 +191,8 @@ pub const AT_SEARCH_BOUND: &str = "at_search_bound";
 /// A parameter of a link equation's `sensor_delay` whose validation gain on the fit run was
 /// under `min_gain` and which a held-out run confirmed (`select::sparse_lag_held_out`), or of
 /// a restoring loop's encoder slip that a loop from another start held as well on the fit run
-/// (`select::slip_from_other_start`): the held-out likelihood ratio it passed. The held-out data chose this effect, so the error
-/// after is not independent of the choice.
+/// (`select::slip_from_other_start`): the held-out likelihood ratio it passed. The held-out
+/// data chose this effect, so the error after is not independent of the choice.
 pub const NAMED_ON_HELD_OUT: &str = "named_on_held_out_likelihood_ratio";
 
 /// Parameters of a jump (an offset's or a stiffness step's) that lies inside a held-out block

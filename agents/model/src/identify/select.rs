@@ -2391,9 +2391,10 @@ fn sparse_lag_held_out(
 /// other start ([`slip_from`], its instant and size fitted on the fit rows alone, its loop its
 /// own) is named where it fits the fit rows better than the loop kept did alone (the
 /// criterion's score, which charges its instant and size) and the held-out run confirms it as
-/// strictly as [`sparse_lag_held_out`]'s lag: a likelihood ratio above [`HELDOUT_LR`] and a
-/// held-out RMSE lower by `min_gain`. The report says the held-out data chose
-/// ([`super::NAMED_ON_HELD_OUT`]).
+/// strictly as [`held_out_check`] confirms a jump: a likelihood ratio above
+/// [`HELDOUT_LR_SEARCHED`] where each held-out run is read to take it at its own instant, else
+/// above [`HELDOUT_LR`] at the fit's, and a held-out RMSE lower by `min_gain` either way. The
+/// report says the held-out data chose ([`super::NAMED_ON_HELD_OUT`]).
 fn slip_from_other_start(
     p: &mut Problem,
     out: &mut Vetted,
