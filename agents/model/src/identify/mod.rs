@@ -557,7 +557,8 @@ pub fn identify(
             Ok((p, before.clone()))
         }
     };
-    let (mut p, base) = if loop_rests.is_some() {
+    let settled = loop_rests.is_some();
+    let (p, base) = if settled {
         let shift = |runs: &[Run], first: usize| -> Vec<Run> {
             runs.iter()
                 .enumerate()
@@ -640,6 +641,28 @@ pub fn identify(
         }
         (p, base)
     };
+    // The loop's fit started from friction's loops as well ([`select::friction_starts`]): the
+    // one that fits the fit rows best is kept, for the effects and for `before` alike.
+    let (mut p, base) = if p.model == Declared::Restoring && !settled {
+        let mut best = (p, base);
+        for start in select::friction_starts(&best.0, &rows.fit) {
+            if let Some(better) = better_from(&best.0, &best.1, &start) {
+                best = better;
+            }
+        }
+        best
+    } else {
+        (p, base)
+    };
+    if raw.restoring.is_some() {
+        for start in select::friction_starts(&raw, &rows.fit) {
+            if let Some(better) = better_from(&raw, &before, &start) {
+                (raw, before) = better;
+                base_before = base_params(opts.model, before.part(0), raw.restoring.as_ref());
+                e_before = before.residual_on(&raw.tau, &rows.held);
+            }
+        }
+    }
     // And the other way round: the data as given, refitted from the loop the tare's fit found. A
     // tare of 0.2 mN·m (under a tenth of the noise) let the refit leave the basin the data as given
     // were fitted in, for one that fits the fit rows a third better (4.9 against 7.4 mN·m) and the
