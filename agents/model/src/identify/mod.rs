@@ -470,8 +470,6 @@ pub fn identify(
         }
         fitted => fitted?,
     };
-    let mut base_before = base_params(opts.model, before.part(0), raw.restoring.as_ref());
-    let mut e_before = before.residual_on(&raw.tau, &rows.held);
     // What the angle's noise weighs against: the declared model's torque per radian on the
     // fit rows, and the torque sensor's own white noise (see `Problem::denoise`).
     let torque_per_rad = {
@@ -643,25 +641,19 @@ pub fn identify(
     };
     // The loop's fit started from friction's loops as well ([`select::friction_starts`]): the
     // one that fits the fit rows best is kept, for the effects and for `before` alike.
+    let best_from_frictions = |fitted: (Problem, model::Fitted)| {
+        let starts = select::friction_starts(&fitted.0, &rows.fit);
+        starts.iter().fold(fitted, |best, start| {
+            better_from(&best.0, &best.1, start).unwrap_or(best)
+        })
+    };
     let (mut p, base) = if p.model == Declared::Restoring && !settled {
-        let mut best = (p, base);
-        for start in select::friction_starts(&best.0, &rows.fit) {
-            if let Some(better) = better_from(&best.0, &best.1, &start) {
-                best = better;
-            }
-        }
-        best
+        best_from_frictions((p, base))
     } else {
         (p, base)
     };
     if raw.restoring.is_some() {
-        for start in select::friction_starts(&raw, &rows.fit) {
-            if let Some(better) = better_from(&raw, &before, &start) {
-                (raw, before) = better;
-                base_before = base_params(opts.model, before.part(0), raw.restoring.as_ref());
-                e_before = before.residual_on(&raw.tau, &rows.held);
-            }
-        }
+        (raw, before) = best_from_frictions((raw, before));
     }
     // And the other way round: the data as given, refitted from the loop the tare's fit found. A
     // tare of 0.2 mN·m (under a tenth of the noise) let the refit leave the basin the data as given
@@ -675,9 +667,9 @@ pub fn identify(
         && let Some(better) = (p.restoring.as_ref()).and_then(|c| better_from(&raw, &before, c))
     {
         (raw, before) = better;
-        base_before = base_params(opts.model, before.part(0), raw.restoring.as_ref());
-        e_before = before.residual_on(&raw.tau, &rows.held);
     }
+    let base_before = base_params(opts.model, before.part(0), raw.restoring.as_ref());
+    let e_before = before.residual_on(&raw.tau, &rows.held);
     let declared_curve = p.restoring.clone();
     let e_tared = base.residual_on(&p.tau, &rows.held);
 
