@@ -324,7 +324,11 @@ impl Rows {
 
 /// Residual sum of squares and effective sample size of a fit on `rows`.
 pub(crate) fn rss_and_neff(p: &Problem, f: &Fitted, rows: &[usize]) -> (f64, f64) {
-    let e = f.residual_on(&p.tau, rows);
+    rss_and_neff_of(p, &f.residual_on(&p.tau, rows), rows)
+}
+
+/// The same of a residual `e` on `rows` (indexed like them).
+fn rss_and_neff_of(p: &Problem, e: &[f64], rows: &[usize]) -> (f64, f64) {
     let rss: f64 = e.iter().map(|v| v * v).sum();
     let segs: Vec<&[f64]> = p.stretches(rows).iter().map(|&(a, b)| &e[a..b]).collect();
     (rss, effective_samples(&segs))
@@ -650,7 +654,6 @@ pub(crate) fn forward(
                 let (trial, s1) = signals_with(&c);
                 let f1 = fit(&s1, &trial, &pe.tau, &rows.fit).ok_or(IdentifyError::Solve)?;
                 let coefs = f1.part(trial.len()).to_vec();
-                let (rss1, n_eff) = rss_and_neff(pe, &f1, &rows.fit);
                 let k = c.parameters(&coefs, pe.model.is_joint());
                 let charge = Charge {
                     residual: f1.residual_on(&pe.tau, &rows.fit),
@@ -660,6 +663,7 @@ pub(crate) fn forward(
                 if takes_the_inertias_place(pe.model, &c, &all, &f1) {
                     return Ok((c, val, REPLACES_INERTIA, coefs, false, charge));
                 }
+                let (rss1, n_eff) = rss_and_neff_of(pe, &charge.residual, &rows.fit);
                 let sc = score(rss0, rss1, n_eff, k, tried);
                 let inertia_back = gives_the_inertia_back(pe.model, &c, &all, &f1);
                 Ok((c, val, sc, coefs, inertia_back, charge))
@@ -955,7 +959,7 @@ struct Paying {
     gain: f64,
     /// The criterion's score: what a tie is broken by.
     score: f64,
-    /// What the criterion charged it: its fit rows' RSS, parameters and shapes searched.
+    /// What the criterion charged it: its residual on the fit rows, parameters and shapes.
     charge: Charge,
     /// Its residual on the validation rows (fitted on the train rows).
     residual: Vec<f64>,
@@ -1004,15 +1008,14 @@ fn deflection_lag(model: Declared, c: &Shaped) -> bool {
 /// beats at once on validation, clearly on the fit rows, and on parameters and shapes searched.
 /// The criterion alone used to rank, and on each candidate's own effective samples it favours
 /// whatever whitens the residual even where another candidate predicts unseen data clearly
-/// better: a stop engaging
-/// at a third of the travel lost to a gap that validated 7× worse. Where validation cannot
-/// tell two apart the criterion still decides (a tie broken by fewer parameters instead named
-/// a lag or viscous friction for a small hysteresis under 1.5 % torque noise, and an encoder
-/// bias for a torque-sensor bias on the lever) — except between viscous friction and a lag of
-/// the deflection on a joint model, to first order one column: there the friction is named
-/// unless the lag is clearly better by more than the rate's noise in the friction's column,
-/// and better by `min_gain`; and between gravity and a torque offset, where the offset is
-/// named unless gravity is clearly better.
+/// better: a stop engaging at a third of the travel lost to a gap that validated 7× worse.
+/// Where validation cannot tell two apart the criterion still decides (a tie broken by fewer
+/// parameters instead named a lag or viscous friction for a small hysteresis under 1.5 %
+/// torque noise, and an encoder bias for a torque-sensor bias on the lever) — except between
+/// viscous friction and a lag of the deflection on a joint model, to first order one column:
+/// there the friction is named unless the lag is clearly better by more than the rate's noise
+/// in the friction's column, and better by `min_gain`; and between gravity and a torque
+/// offset, where the offset is named unless gravity is clearly better.
 fn rank(p: &Problem, rows: &Rows, paying: Vec<Paying>, min_gain: f64) -> Option<Paying> {
     let validate = &rows.validate[..];
     let by_gain = |a: &Paying, b: &Paying| a.gain.total_cmp(&b.gain);
